@@ -1,0 +1,1 @@
+"""Built-in specimen and rig files."""
