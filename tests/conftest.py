@@ -1,0 +1,5 @@
+"""Test-wide settings: headless Qt and matplotlib, single-threaded BLAS."""
+import os
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+os.environ.setdefault("MPLBACKEND", "Agg")
