@@ -1,0 +1,596 @@
+"""Free-free Mindlin (first-order shear) laminated plate, finite elements.
+
+Paper section 2 (Eqs. 1-14): displacements u = u0 + z bx, v = v0 + z by,
+w = w0; generalised strains eps0 = (u0,x, v0,y, u0,y + v0,x), kappa =
+(bx,x, by,y, bx,y + by,x), gamma = (bx + w0,x, by + w0,y); energy
+U = 1/2 int(eps0'A eps0 + 2 eps0'B kappa + kappa'D kappa + gamma'H gamma) dS,
+kinetic energy with I1, I2, I3 (Eq. 9). A, B, D, H come from
+``engine.laminate.abdh`` (shear factor 5/6).
+
+Discretisation: a uniform nx x ny grid of 16-node bicubic Lagrange elements,
+5 DOF per node (u0, v0, w0, bx, by; global DOF = 5 node + k), free edges.
+Transverse shear uses assumed (substitute) strains to avoid shear locking:
+gamma_xz is sampled at 3 (Gauss, along x) x 4 (Gauss, along y) tying points
+and re-interpolated (quadratic in x, cubic in y), gamma_yz likewise with the
+roles swapped. This matches the polynomial degree of w0,x (resp. w0,y), so
+the Kirchhoff limit is reached without locking and, unlike plain 3x3 reduced
+integration (which admits the checkerboard w = P3(xi) P3(eta) hourglass), it
+keeps exactly six zero-energy (rigid-body) modes.
+
+Units SI: m, kg, s, Pa; eigenvalues lambda = omega^2 in rad^2/s^2.
+
+Linearity: all elements of the uniform mesh are identical, so each element
+matrix is a fixed linear combination of 21 unit element matrices (the
+independent entries of A, B, D, H) for K and of 3 (I1, I2, I3) for M. These in
+turn are linear in each material's reduced stiffnesses (Q11, Q12, Q22, Q66,
+G13, G23) and density. Re-solving for new constants therefore only forms a
+21-vector, one 80x80 element matrix and one sparse scatter of fixed pattern:
+no re-assembly.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .laminate import Laminate, Material, PhysicsError, abdh, transform_inplane, transform_shear
+
+__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "DEFAULT_ELEMENTS",
+           "FEError"]
+
+#: Elements along the longer side by default (from the CFRP convergence study,
+#: bench/RESULTS.md): ten elastic modes converged to better than 0.1 %.
+DEFAULT_ELEMENTS = 8
+
+NODE_DOF = 5
+_SPARE = 4
+_NODES_1D = np.array([-1.0, -1.0 / 3.0, 1.0 / 3.0, 1.0])
+_G4, _W4 = np.polynomial.legendre.leggauss(4)
+_G3, _ = np.polynomial.legendre.leggauss(3)
+_SYM3 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+_SYM2 = ((0, 0), (0, 1), (1, 1))
+#: names of the 21 stiffness coefficients (independent entries of A, B, D, H)
+COEF_NAMES = tuple(f"{m}{i + 1}{j + 1}" for m in "ABD" for i, j in _SYM3) + tuple(
+    f"H{i + 4}{j + 4}" for i, j in _SYM2)
+#: per-material stiffness components K is linear in
+Q_NAMES = ("Q11", "Q12", "Q22", "Q66", "G13", "G23")
+
+
+class FEError(ValueError):
+    """Bad mesh, point outside the plate, or a failed rigid-body-mode check."""
+
+
+# ---------------------------------------------------------------- mesh --
+@dataclass(frozen=True)
+class Mesh:
+    """Uniform nx x ny grid of 16-node elements on [0, length] x [0, width] (m).
+
+    Nodes are numbered row by row (x fastest): node = iy * (3 nx + 1) + ix.
+    """
+
+    nx: int
+    ny: int
+    length: float
+    width: float
+
+    def __post_init__(self) -> None:
+        for k in ("nx", "ny"):
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise FEError(f"mesh {k} = {v!r}: expected a positive integer")
+        for k in ("length", "width"):
+            v = getattr(self, k)
+            if not (np.isfinite(v) and v > 0):
+                raise FEError(f"plate {k} = {v!r}: expected a positive value in m")
+
+    @classmethod
+    def default(cls, length: float, width: float, n: int = DEFAULT_ELEMENTS) -> "Mesh":
+        """n elements along the longer side, near-square elements."""
+        big = max(length, width)
+        nx = max(2, int(round(n * length / big)))
+        ny = max(2, int(round(n * width / big)))
+        return cls(nx, ny, float(length), float(width))
+
+    @property
+    def nnx(self) -> int:
+        return 3 * self.nx + 1
+
+    @property
+    def nny(self) -> int:
+        return 3 * self.ny + 1
+
+    @property
+    def n_nodes(self) -> int:
+        return self.nnx * self.nny
+
+    @property
+    def n_dof(self) -> int:
+        return NODE_DOF * self.n_nodes
+
+    @property
+    def dx(self) -> float:
+        return self.length / self.nx
+
+    @property
+    def dy(self) -> float:
+        return self.width / self.ny
+
+    @property
+    def coords(self) -> np.ndarray:
+        """(n_nodes, 2) node coordinates, m."""
+        x = np.linspace(0.0, self.length, self.nnx)
+        y = np.linspace(0.0, self.width, self.nny)
+        X, Y = np.meshgrid(x, y)
+        return np.column_stack([X.ravel(), Y.ravel()])
+
+    @property
+    def connectivity(self) -> np.ndarray:
+        """(n_elements, 16) node numbers; local node = 4 j + i (i along x)."""
+        ex, ey = np.meshgrid(np.arange(self.nx), np.arange(self.ny))
+        ex, ey = ex.ravel(), ey.ravel()
+        i = np.tile(np.arange(4), 4)
+        j = np.repeat(np.arange(4), 4)
+        return (3 * ey[:, None] + j[None, :]) * self.nnx + 3 * ex[:, None] + i[None, :]
+
+    @property
+    def element_dofs(self) -> np.ndarray:
+        """(n_elements, 80) global DOFs; local DOF = 5 local_node + k."""
+        c = self.connectivity
+        return (NODE_DOF * c[:, :, None] + np.arange(NODE_DOF)).reshape(c.shape[0], -1)
+
+    def locate(self, points: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Element index and local coordinates (xi, eta in [-1, 1]) of (x, y) points."""
+        p = np.atleast_2d(np.asarray(points, dtype=float))
+        if p.ndim != 2 or p.shape[1] != 2:
+            raise FEError(f"points of shape {p.shape}: expected (n, 2) x, y in m")
+        x, y = p[:, 0], p[:, 1]
+        tl, tw = tol * self.length, tol * self.width
+        bad = (x < -tl) | (x > self.length + tl) | (y < -tw) | (y > self.width + tw) | ~np.isfinite(x + y)
+        if np.any(bad):
+            k = int(np.flatnonzero(bad)[0])
+            raise FEError(f"point ({x[k]!r}, {y[k]!r}) lies outside the plate "
+                          f"[0, {self.length}] x [0, {self.width}] m")
+        ex = np.clip(np.floor(x / self.dx).astype(int), 0, self.nx - 1)
+        ey = np.clip(np.floor(y / self.dy).astype(int), 0, self.ny - 1)
+        xi = np.clip(2.0 * (x - ex * self.dx) / self.dx - 1.0, -1.0, 1.0)
+        eta = np.clip(2.0 * (y - ey * self.dy) / self.dy - 1.0, -1.0, 1.0)
+        return ey * self.nx + ex, xi, eta
+
+
+# -------------------------------------------------- shape functions ----
+def _lagrange(nodes: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1D Lagrange basis on ``nodes`` at points t: values and derivatives (len(t), len(nodes))."""
+    t = np.asarray(t, dtype=float)
+    C = np.linalg.inv(np.vander(nodes, increasing=True))  # N_i(t) = sum_k t^k C[k, i]
+    n = len(nodes)
+    P = np.vander(t, n, increasing=True)
+    dP = np.zeros_like(P)
+    dP[:, 1:] = P[:, :-1] * np.arange(1, n)
+    return P @ C, dP @ C
+
+
+def _shape_2d(xi: np.ndarray, eta: np.ndarray, dx: float, dy: float):
+    """16 bicubic shape functions and x, y derivatives at points (npts, 16)."""
+    Nx, dNx = _lagrange(_NODES_1D, xi)
+    Ny, dNy = _lagrange(_NODES_1D, eta)
+    N = (Ny[:, :, None] * Nx[:, None, :]).reshape(len(xi), 16)
+    Nxd = (Ny[:, :, None] * dNx[:, None, :]).reshape(len(xi), 16) * (2.0 / dx)
+    Nyd = (dNy[:, :, None] * Nx[:, None, :]).reshape(len(xi), 16) * (2.0 / dy)
+    return N, Nxd, Nyd
+
+
+def _unit_element_matrices(dx: float, dy: float) -> tuple[np.ndarray, np.ndarray]:
+    """Unit element stiffness (21, 80, 80) per COEF_NAMES and mass (3, 80, 80) per I1, I2, I3."""
+    XI, ETA = np.meshgrid(_G4, _G4, indexing="ij")
+    xi, eta = XI.ravel(), ETA.ravel()
+    w = np.outer(_W4, _W4).ravel() * dx * dy / 4.0
+    npt = len(xi)
+    N, Nx, Ny = _shape_2d(xi, eta, dx, dy)
+
+    def field(k: int, vals: np.ndarray) -> np.ndarray:
+        out = np.zeros((vals.shape[0], 16, NODE_DOF))
+        out[:, :, k] = vals
+        return out.reshape(vals.shape[0], 80)
+
+    U, V, W, BX, BY = range(5)
+    Bm = np.stack([field(U, Nx), field(V, Ny), field(U, Ny) + field(V, Nx)], axis=1)
+    Bb = np.stack([field(BX, Nx), field(BY, Ny), field(BX, Ny) + field(BY, Nx)], axis=1)
+
+    # assumed transverse shear strains (tying points, see module docstring)
+    lx, _ = _lagrange(_G3, _G4)  # (4 integration pts, 3 tying pts)
+    TX, TY = np.meshgrid(_G3, _G4, indexing="ij")  # xz: 3 along x, 4 along y
+    Nt, Ntx, _ = _shape_2d(TX.ravel(), TY.ravel(), dx, dy)
+    gxz_t = (field(BX, Nt) + field(W, Ntx)).reshape(3, 4, 80)
+    gxz = np.einsum("ak,kbd->abd", lx, gxz_t).reshape(npt, 80)
+    TX, TY = np.meshgrid(_G4, _G3, indexing="ij")  # yz: 4 along x, 3 along y
+    Nt, _, Nty = _shape_2d(TX.ravel(), TY.ravel(), dx, dy)
+    gyz_t = (field(BY, Nt) + field(W, Nty)).reshape(4, 3, 80)
+    gyz = np.einsum("bk,akd->abd", lx, gyz_t).reshape(npt, 80)
+    Bs = np.stack([gxz, gyz], axis=1)
+
+    Ke = np.zeros((21, 80, 80))
+    for c, (i, j) in enumerate(_SYM3):
+        mm = np.einsum("p,pa,pb->ab", w, Bm[:, i], Bm[:, j])
+        bb = np.einsum("p,pa,pb->ab", w, Bb[:, i], Bb[:, j])
+        mb = np.einsum("p,pa,pb->ab", w, Bm[:, i], Bb[:, j])
+        if i != j:
+            mm, bb, mb = mm + mm.T, bb + bb.T, mb + np.einsum("p,pa,pb->ab", w, Bm[:, j], Bb[:, i])
+        Ke[c], Ke[12 + c], Ke[6 + c] = mm, bb, mb + mb.T
+    for c, (i, j) in enumerate(_SYM2):
+        ss = np.einsum("p,pa,pb->ab", w, Bs[:, i], Bs[:, j])
+        Ke[18 + c] = ss + ss.T if i != j else ss
+
+    NN = np.einsum("p,pa,pb->ab", w, N, N)
+    Me = np.zeros((3, 16, NODE_DOF, 16, NODE_DOF))
+    for k in (U, V, W):
+        Me[0, :, k, :, k] = NN
+    for a, b in ((U, BX), (V, BY)):
+        Me[1, :, a, :, b] = NN
+        Me[1, :, b, :, a] = NN
+    for k in (BX, BY):
+        Me[2, :, k, :, k] = NN
+    return Ke, Me.reshape(3, 80, 80)
+
+
+# ------------------------------------------------- material linearity --
+def _q_vector(mat: Material) -> np.ndarray:
+    """(Q11, Q12, Q22, Q66, G13, G23) of paper Eq. 4, Pa."""
+    nu21 = mat.nu12 * mat.E2 / mat.E1
+    d = 1.0 - mat.nu12 * nu21
+    return np.array([mat.E1 / d, mat.nu12 * mat.E2 / d, mat.E2 / d, mat.G12, mat.G13, mat.G23])
+
+
+def _q_derivatives(mat: Material, names: Sequence[str]) -> np.ndarray:
+    """d(q, density)/dp, shape (7, len(names)); q as in ``_q_vector``, chain rule through Eq. 4.
+
+    Isotropic materials (parameters E, G, nu): with_params keeps G when E is
+    changed (nu follows) and keeps E when nu is changed (G follows).
+    """
+    out = np.zeros((7, len(names)))
+    if mat.isotropic:
+        E, G = mat.E1, mat.G12
+        nu = E / (2.0 * G) - 1.0
+        s = 1.0 - nu * nu
+        dQ11 = np.array([1.0 / s, 2.0 * E * nu / s**2])      # d/dE, d/dnu at fixed (E, nu)
+        dQ12 = np.array([nu / s, E / s + nu * dQ11[1]])
+        for c, p in enumerate(names):
+            if p == "E":      # G fixed, nu = E/2G - 1
+                dE, dnu, dG = 1.0, 1.0 / (2.0 * G), 0.0
+            elif p == "G":    # E fixed
+                dE, dnu, dG = 0.0, -E / (2.0 * G * G), 1.0
+            elif p == "nu":   # E fixed, G = E / 2(1 + nu)
+                dE, dnu, dG = 0.0, 1.0, -E / (2.0 * (1.0 + nu) ** 2)
+            elif p == "density":
+                out[6, c] = 1.0
+                continue
+            else:
+                raise KeyError(f"unknown isotropic parameter {p!r}; expected E, G, nu or density")
+            q11 = dQ11[0] * dE + dQ11[1] * dnu
+            q12 = dQ12[0] * dE + dQ12[1] * dnu
+            out[:6, c] = [q11, q12, q11, dG, dG, dG]
+        return out
+    E1, E2, nu = mat.E1, mat.E2, mat.nu12
+    d = 1.0 - nu * nu * E2 / E1
+    dd = {"E1": nu * nu * E2 / E1**2, "E2": -nu * nu / E1, "nu12": -2.0 * nu * E2 / E1}
+    for c, p in enumerate(names):
+        if p in dd:
+            g = dd[p]
+            dE1 = 1.0 if p == "E1" else 0.0
+            dE2 = 1.0 if p == "E2" else 0.0
+            dnu = 1.0 if p == "nu12" else 0.0
+            out[0, c] = dE1 / d - E1 * g / d**2
+            out[1, c] = (dnu * E2 + nu * dE2) / d - nu * E2 * g / d**2
+            out[2, c] = dE2 / d - E2 * g / d**2
+        elif p in ("G12", "G13", "G23"):
+            out[{"G12": 3, "G13": 4, "G23": 5}[p], c] = 1.0
+        elif p == "density":
+            out[6, c] = 1.0
+        else:
+            raise KeyError(f"unknown orthotropic parameter {p!r}; expected E1 E2 nu12 G12 G13 G23 density")
+    return out
+
+
+def _coef_vector(A, B, D, H) -> np.ndarray:
+    return np.array([A[i, j] for i, j in _SYM3] + [B[i, j] for i, j in _SYM3]
+                    + [D[i, j] for i, j in _SYM3] + [H[i, j] for i, j in _SYM2])
+
+
+def _material_maps(lam: Laminate, shear_factor: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per material name: (L (21, 6): coefficients per unit q; R (3,): I1, I2, I3 per unit density)."""
+    z = lam.z_interfaces
+    maps: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    units = []
+    for k in range(4):
+        Q = np.zeros((3, 3))
+        idx = [(0, 0), (0, 1), (1, 1), (2, 2)][k]
+        Q[idx] = Q[idx[::-1]] = 1.0
+        units.append(Q)
+    for k, ply in enumerate(lam.plies):
+        name = ply.material.name
+        L, R = maps.setdefault(name, (np.zeros((21, 6)), np.zeros(3)))
+        z0, z1 = z[k], z[k + 1]
+        d1, d2, d3 = z1 - z0, (z1**2 - z0**2) / 2.0, (z1**3 - z0**3) / 3.0
+        for c in range(6):
+            if c < 4:
+                Qb = transform_inplane(units[c], ply.angle_deg)
+                L[:, c] += _coef_vector(Qb * d1, Qb * d2, Qb * d3, np.zeros((2, 2)))
+            else:
+                Qs = np.diag([1.0, 0.0] if c == 4 else [0.0, 1.0])
+                Hs = transform_shear(Qs, ply.angle_deg) * d1 * shear_factor
+                L[:, c] += _coef_vector(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), Hs)
+        R += [d1, d2, d3]
+    return maps
+
+
+# --------------------------------------------------------------- modes --
+@dataclass(frozen=True)
+class Modes:
+    """Elastic modes, ascending.
+
+    ``shapes`` (n_dof, n) are mass-normalised (phi' M phi = 1, units 1/sqrt(kg));
+    ``omega2`` in rad^2/s^2; ``rigid_max_omega`` (rad/s) is the largest |omega|
+    among the six rigid-body modes that were detected and excluded (with
+    springs: the suspension modes).
+    """
+
+    frequencies_hz: np.ndarray
+    omega2: np.ndarray
+    shapes: np.ndarray
+    rigid_max_omega: float
+    params: Mapping[str, float] = field(default_factory=dict)
+    material: str | None = None
+
+
+@dataclass(frozen=True)
+class _Pattern:
+    """Fixed CSR sparsity pattern of the global matrices and the element scatter."""
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    scatter: sp.csr_matrix  # (nnz, 6400): data = scatter @ Ke.ravel()
+    elem_pos: np.ndarray    # (n_elements, 6400) position in data of each element entry
+
+    @classmethod
+    def build(cls, mesh: Mesh) -> "_Pattern":
+        dofs = mesh.element_dofs
+        ne = dofs.shape[0]
+        rows = np.repeat(dofs, 80, axis=1).ravel()
+        cols = np.tile(dofs, (1, 80)).ravel()
+        key = rows.astype(np.int64) * mesh.n_dof + cols
+        ukey, inv = np.unique(key, return_inverse=True)
+        n = mesh.n_dof
+        r, c = np.divmod(ukey, n)
+        indptr = np.searchsorted(r, np.arange(n + 1)).astype(np.int32)
+        scatter = sp.csr_matrix((np.ones(inv.size), (inv, np.tile(np.arange(6400), ne))),
+                                shape=(ukey.size, 6400))
+        return cls(indptr, c.astype(np.int32), scatter, inv.reshape(ne, 6400))
+
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        n = len(self.indptr) - 1
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
+
+
+def _point_matrix(mesh: Mesh, pat: _Pattern, x: float, y: float,
+                  diag: Sequence[float]) -> np.ndarray:
+    """Data vector of sum_k diag[k] N_k' N_k for the 5 DOF fields at one point."""
+    e, xi, eta = mesh.locate([[x, y]])
+    N, _, _ = _shape_2d(xi, eta, mesh.dx, mesh.dy)
+    NN = np.outer(N[0], N[0])
+    Me = np.zeros((16, NODE_DOF, 16, NODE_DOF))
+    for k, v in enumerate(diag):
+        if v:
+            Me[:, k, :, k] = v * NN
+    data = np.zeros(pat.indices.size)
+    np.add.at(data, pat.elem_pos[e[0]], Me.ravel())
+    return data
+
+
+class PlateModel:
+    """Free-free laminated Mindlin plate: precomputed parts, solve per parameter set."""
+
+    def __init__(self, laminate: Laminate, mesh: Mesh, shear_factor: float = 5.0 / 6.0,
+                 *, _parts=None, k_add=None, m_add=None):
+        self.laminate, self.mesh, self.shear_factor = laminate, mesh, shear_factor
+        if _parts is None:
+            Ke, Me = _unit_element_matrices(mesh.dx, mesh.dy)
+            _parts = (Ke, Me, _Pattern.build(mesh), _material_maps(laminate, shear_factor))
+        self._Ke, self._Me, self._pat, self._maps = _parts
+        nnz = self._pat.indices.size
+        self._k_add = np.zeros(nnz) if k_add is None else k_add
+        self._m_add = np.zeros(nnz) if m_add is None else m_add
+        self._interp_cache: dict = {}
+
+    # -- construction ---------------------------------------------------
+    @classmethod
+    def build(cls, laminate: Laminate, length: float, width: float, mesh=None,
+              shear_factor: float = 5.0 / 6.0) -> "PlateModel":
+        """Precompute the parts. ``mesh``: None (default), (nx, ny) or a Mesh."""
+        if mesh is None:
+            m = Mesh.default(length, width)
+        elif isinstance(mesh, Mesh):
+            m = mesh
+        else:
+            try:
+                nx, ny = mesh
+            except (TypeError, ValueError):
+                raise FEError(f"mesh = {mesh!r}: expected (nx, ny) elements") from None
+            m = Mesh(nx, ny, float(length), float(width))
+        for mat in laminate.materials.values():
+            mat.check()
+        return cls(laminate, m, shear_factor)
+
+    def _derived(self, k_add=None, m_add=None) -> "PlateModel":
+        return PlateModel(self.laminate, self.mesh, self.shear_factor,
+                          _parts=(self._Ke, self._Me, self._pat, self._maps),
+                          k_add=self._k_add if k_add is None else k_add,
+                          m_add=self._m_add if m_add is None else m_add)
+
+    def with_point_masses(self, masses: Iterable[Sequence[float]]) -> "PlateModel":
+        """Add point masses (x, y, m) or (x, y, m, Ix, Iy): m in kg on u0, v0, w0;
+        rotary inertias in kg m^2, Ix about the x axis (acts on by), Iy about y (on bx)."""
+        add = self._m_add.copy()
+        for row in masses:
+            row = tuple(float(v) for v in row)
+            if len(row) not in (3, 5):
+                raise FEError(f"point mass {row!r}: expected (x, y, m_kg) or (x, y, m_kg, Ix, Iy)")
+            x, y, m = row[:3]
+            Ix, Iy = row[3:] if len(row) == 5 else (0.0, 0.0)
+            if not (m >= 0 and Ix >= 0 and Iy >= 0):
+                raise FEError(f"point mass {row!r}: expected non-negative mass and inertias")
+            add += _point_matrix(self.mesh, self._pat, x, y, (m, m, m, Iy, Ix))
+        return self._derived(m_add=add)
+
+    def with_springs(self, springs: Iterable[Sequence[float]]) -> "PlateModel":
+        """Add grounded transverse springs (x, y, kz) on w0, kz in N/m."""
+        add = self._k_add.copy()
+        for row in springs:
+            row = tuple(float(v) for v in row)
+            if len(row) != 3 or not row[2] >= 0:
+                raise FEError(f"spring {row!r}: expected (x, y, kz_N_per_m) with kz >= 0")
+            add += _point_matrix(self.mesh, self._pat, row[0], row[1], (0, 0, row[2], 0, 0))
+        return self._derived(k_add=add)
+
+    # -- parameters -----------------------------------------------------
+    def _material_name(self, material: str | None) -> str:
+        if material is None:
+            if len(self._maps) != 1:
+                raise KeyError(f"laminate has materials {sorted(self._maps)}; name the one to update")
+            return next(iter(self._maps))
+        if material not in self._maps:
+            raise KeyError(f"material {material!r} not in laminate; expected one of {sorted(self._maps)}")
+        return material
+
+    def _materials(self, params, material) -> dict[str, Material]:
+        mats = dict(self.laminate.materials)
+        if params:
+            name = self._material_name(material)
+            mats[name] = mats[name].with_params(**params)
+            mats[name].check()
+        return mats
+
+    def coefficients(self, params: Mapping[str, float] | None = None,
+                     material: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(21 stiffness coefficients per COEF_NAMES, (I1, I2, I3)) for a parameter set."""
+        c = np.zeros(21)
+        inert = np.zeros(3)
+        for name, mat in self._materials(params, material).items():
+            L, R = self._maps[name]
+            c += L @ _q_vector(mat)
+            inert += R * mat.density
+        return c, inert
+
+    def matrices(self, params=None, material=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """Global K (N/m) and M (kg), CSR, sharing one sparsity pattern."""
+        c, inert = self.coefficients(params, material)
+        kd = self._pat.scatter @ np.tensordot(c, self._Ke, 1).ravel() + self._k_add
+        md = self._pat.scatter @ np.tensordot(inert, self._Me, 1).ravel() + self._m_add
+        return self._pat.matrix(kd), self._pat.matrix(md)
+
+    # -- rigid body modes --------------------------------------------------
+    def rigid_body_vectors(self) -> np.ndarray:
+        """(n_dof, 6) translations x, y, z; rotation about z; rotations about x and y."""
+        xy = self.mesh.coords
+        n = xy.shape[0]
+        R = np.zeros((n, NODE_DOF, 6))
+        R[:, 0, 0] = R[:, 1, 1] = R[:, 2, 2] = 1.0
+        R[:, 0, 3], R[:, 1, 3] = -xy[:, 1], xy[:, 0]
+        R[:, 2, 4], R[:, 4, 4] = xy[:, 1], -1.0
+        R[:, 2, 5], R[:, 3, 5] = xy[:, 0], -1.0
+        return R.reshape(n * NODE_DOF, 6)
+
+    # -- solve --------------------------------------------------------------
+    def solve(self, n_modes: int = 10, params: Mapping[str, float] | None = None,
+              material: str | None = None, sigma: float | None = None) -> Modes:
+        """The n_modes lowest elastic modes (rigid-body modes detected and excluded)."""
+        if int(n_modes) < 1:
+            raise FEError(f"n_modes = {n_modes!r}: expected a positive integer")
+        n_modes = int(n_modes)
+        K, M = self.matrices(params, material)
+        k = n_modes + 6 + _SPARE  # spare modes: ARPACK may miss one of a degenerate pair at the end
+        if k >= self.mesh.n_dof - 1:
+            raise FEError(f"n_modes = {n_modes}: mesh has only {self.mesh.n_dof} DOF")
+        if sigma is None:
+            sigma = -1e-3 * self._omega2_scale(params, material)
+        A = sp.csc_matrix((K.data - sigma * M.data, K.indices, K.indptr), shape=K.shape)
+        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+        op = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
+        v0 = np.random.default_rng(20120101).standard_normal(self.mesh.n_dof)  # reproducible
+        lam, vec = spla.eigsh(K, k=k, M=M, sigma=sigma, OPinv=op, which="LM", v0=v0,
+                              ncv=min(self.mesh.n_dof - 1, max(2 * k + 1, 20)), tol=1e-10)
+        order = np.argsort(lam)
+        lam, vec = lam[order], vec[:, order]
+        rigid = self._rigid_mask(vec, M)
+        if rigid.sum() != 6:
+            raise FEError(f"found {int(rigid.sum())} rigid-body modes among the {k} lowest, "
+                          "expected exactly 6")
+        elastic = ~rigid
+        scale = np.max(np.abs(lam[elastic]))
+        if np.any(lam[elastic] < 1e-8 * scale):
+            raise FEError("spurious zero-energy mode: elastic mode with omega^2 ~ 0")
+        lam_e, vec_e = lam[elastic][:n_modes], vec[:, elastic][:, :n_modes]
+        if lam_e.size < n_modes:
+            raise FEError("eigen solver returned too few elastic modes")
+        rigid_max = float(np.sqrt(np.max(np.abs(lam[rigid]))))
+        return Modes(np.sqrt(np.maximum(lam_e, 0.0)) / (2.0 * np.pi), lam_e, vec_e, rigid_max,
+                     dict(params or {}), material)
+
+    def _omega2_scale(self, params, material) -> float:
+        """Rough first elastic omega^2 (thin-plate estimate), rad^2/s^2."""
+        c, inert = self.coefficients(params, material)
+        Dmax = max(c[12], c[15], c[17])
+        a = max(self.mesh.length, self.mesh.width)
+        return 100.0 * Dmax / (inert[0] * a**4)
+
+    def _rigid_mask(self, vec: np.ndarray, M: sp.csr_matrix) -> np.ndarray:
+        """True for modes whose M-norm lies mostly (> 1/2) in the rigid-body space."""
+        R = self.rigid_body_vectors()
+        G = R.T @ (M @ R)
+        P = (M @ R).T @ vec  # (6, k)
+        content = np.einsum("ik,ik->k", P, np.linalg.solve(G, P))
+        return content > 0.5
+
+    # -- mode shapes at points ------------------------------------------------
+    def interpolation(self, points: np.ndarray, component: int = 2) -> sp.csr_matrix:
+        """(n_points, n_dof) sparse map from DOFs to one field (2 = w0) at (x, y) points."""
+        e, xi, eta = self.mesh.locate(points)
+        N, _, _ = _shape_2d(xi, eta, self.mesh.dx, self.mesh.dy)
+        cols = NODE_DOF * self.mesh.connectivity[e] + component
+        rows = np.repeat(np.arange(len(e)), 16)
+        return sp.csr_matrix((N.ravel(), (rows, cols.ravel())), shape=(len(e), self.mesh.n_dof))
+
+    def shapes_at(self, modes: Modes, points) -> np.ndarray:
+        """(n_modes, n_points) w0 of each mode at (x, y) points, same scaling as modes.shapes."""
+        T = self.interpolation(points)
+        return np.asarray((T @ modes.shapes).T)
+
+    # -- sensitivities ----------------------------------------------------------
+    def eigen_sensitivities(self, modes: Modes, names: Sequence[str], params=None,
+                            material=None) -> np.ndarray:
+        """(n_modes, len(names)) d(omega^2)/dp = phi'(dK/dp - omega^2 dM/dp) phi, rad^2/s^2 per unit p.
+
+        ``params``/``material`` must be those the modes were solved with
+        (defaults: the ones recorded in ``modes``).
+        """
+        if params is None:
+            params, material = modes.params, (modes.material if material is None else material)
+        name = self._material_name(material)
+        mat = self._materials(params, material)[name]
+        dq = _q_derivatives(mat, list(names))          # (7, P)
+        L, R = self._maps[name]
+        dc = L @ dq[:6]                                 # (21, P)
+        dI = np.outer(R, dq[6])                         # (3, P)
+        phi = modes.shapes[self.mesh.element_dofs]      # (ne, 80, m)
+        S = np.einsum("eam,ebm->mab", phi, phi, optimize=True)
+        eK = np.einsum("mab,iab->mi", S, self._Ke, optimize=True)   # (m, 21)
+        eM = np.einsum("mab,iab->mi", S, self._Me, optimize=True)   # (m, 3)
+        return eK @ dc - modes.omega2[:, None] * (eM @ dI)
+
+
+def natural_frequencies(laminate: Laminate, length: float, width: float, n: int = 10,
+                        mesh=None) -> np.ndarray:
+    """The n lowest free-free elastic natural frequencies, Hz."""
+    return PlateModel.build(laminate, length, width, mesh).solve(n).frequencies_hz
