@@ -1,0 +1,420 @@
+"""Rig files (TOML): devices, channels, positions, trigger, sources, session defaults.
+
+The format is documented in ``docs/rig-file.md``. Everything is validated where
+it enters: each mistake raises ``UserError`` naming the file, the key, the value
+found and what was expected. The result is a frozen ``Rig`` whose devices carry
+the ``drivers.protocol`` ChannelConfig / Timing / Trigger objects.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any, Mapping
+
+from drivers.protocol import ChannelConfig, Timing, Trigger
+
+from .errors import UserError
+
+BUILTIN = {"default": "rig_default.toml"}
+ROLES = ("hammer", "wave")
+KINDS = ("accelerometer", "force", "voltage")
+COUPLINGS = ("IEPE", "AC", "DC")
+FILTERS = ("butterworth", "bessel", "none")
+DEFAULT_MAX_RATE_HZ = 10.0e6
+
+
+@dataclass(frozen=True)
+class AntiAlias:
+    """Anti-alias low-pass of a device: kind, order, cutoff as a fraction of the rate."""
+
+    kind: str = "butterworth"
+    order: int = 6
+    cutoff_ratio: float = 0.45
+
+
+@dataclass(frozen=True)
+class DeviceSpec:
+    """One acquisition device and the shots it records (role 'hammer' or 'wave')."""
+
+    name: str
+    role: str
+    channels: tuple[ChannelConfig, ...]
+    timing: Timing
+    trigger: Trigger | None
+    product: str = ""
+    max_rate_hz: float = DEFAULT_MAX_RATE_HZ
+    adc_bits: int = 16
+    noise_v: float = 0.0
+    trigger_jitter_s: float = 0.0
+    antialias: AntiAlias = AntiAlias()
+    trigger_timeout_s: float = 10.0
+
+    def channel(self, name: str) -> ChannelConfig:
+        for c in self.channels:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+
+@dataclass(frozen=True)
+class WaveSensor:
+    """A guided-wave sensor: distance (m) and direction (deg) from the wave source."""
+
+    channel: str
+    distance_m: float
+    direction_deg: float = 0.0
+    volts_per_strain: float = 1.0e4
+    length_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class Source:
+    """An excitation: 'hammer' (half-sine, contact_s) or 'pencil' (lead break, rise_s)."""
+
+    kind: str
+    x: float
+    y: float
+    force_n: float = 1.0
+    contact_s: float = 2.0e-4
+    rise_s: float = 1.0e-6
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Settings read only by the simulated backend (mock_hw)."""
+
+    modal_damping: float = 0.005
+    n_modes: int = 40
+    force_spread: float = 0.10
+    double_hit_probability: float = 0.0
+    double_hit_delay_s: float = 3.0e-3
+    double_hit_ratio: float = 0.3
+    miss_probability: float = 0.0
+    wave_fmax_hz: float = 400.0e3
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A parsed, validated rig file."""
+
+    name: str
+    devices: tuple[DeviceSpec, ...]
+    hammer: Source
+    wave_source: Source
+    wave_sensors: tuple[WaveSensor, ...] = ()
+    supports: tuple[tuple[float, float], ...] = ()
+    sim: SimSettings = SimSettings()
+    hits: int = 5
+    waves: int = 3
+    max_retries: int = 5
+    text: str = field(default="", repr=False, compare=False)
+    source: str = "<inline>"
+
+    def device(self, role: str) -> DeviceSpec | None:
+        """The device recording shots of ``role`` ('hammer' or 'wave'), if any."""
+        for d in self.devices:
+            if d.role == role:
+                return d
+        return None
+
+    def wave_sensor(self, channel: str) -> WaveSensor | None:
+        for w in self.wave_sensors:
+            if w.channel == channel:
+                return w
+        return None
+
+    @property
+    def accelerometers(self) -> tuple[ChannelConfig, ...]:
+        return tuple(c for d in self.devices for c in d.channels if c.kind == "accelerometer")
+
+    def check_specimen(self, length: float, width: float) -> None:
+        """Every position on the plate must lie within it (UserError otherwise)."""
+        pts = [("hammer", self.hammer.x, self.hammer.y),
+               ("wave_source", self.wave_source.x, self.wave_source.y)]
+        pts += [(f"supports[{i}]", x, y) for i, (x, y) in enumerate(self.supports)]
+        for d in self.devices:
+            pts += [(f"devices.{d.name}.channels.{c.name}", c.x, c.y)
+                    for c in d.channels if c.x is not None]
+        for key, x, y in pts:
+            if not (-1e-12 <= x <= length + 1e-12 and -1e-12 <= y <= width + 1e-12):
+                raise UserError(f"position ({x:g}, {y:g}) m lies outside the {length:g} x {width:g} m "
+                                "plate; expected 0 <= x <= length, 0 <= y <= width",
+                                file=self.source, key=key)
+
+
+# -- parsing -------------------------------------------------------------
+def _err(src: str, key: str, msg: str) -> UserError:
+    return UserError(msg, file=src, key=key)
+
+
+def _table(doc: Mapping[str, Any], key: str, src: str, where: str = "", required=False) -> Mapping:
+    v = doc.get(key)
+    if v is None:
+        if required:
+            raise _err(src, where + key, "missing table")
+        return {}
+    if not isinstance(v, Mapping):
+        raise _err(src, where + key, f"value {v!r}: expected a table")
+    return v
+
+
+def _keys(tab: Mapping[str, Any], allowed: set[str], where: str, src: str) -> None:
+    for k in tab:
+        if k not in allowed:
+            raise _err(src, where + k, f"unknown key; expected one of {sorted(allowed)}")
+
+
+def _num(tab: Mapping[str, Any], key: str, where: str, src: str, *, default: Any = ...,
+         lo: float | None = None, lo_open=False, hi: float | None = None, what="a number") -> float:
+    if key not in tab:
+        if default is ...:
+            raise _err(src, where + key, f"missing key; expected {what}")
+        return default
+    v = tab[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise _err(src, where + key, f"value {v!r}: expected {what}")
+    v = float(v)
+    if lo is not None and (v < lo or (lo_open and v == lo)):
+        raise _err(src, where + key, f"value {v:g}: expected {what} {'>' if lo_open else '>='} {lo:g}")
+    if hi is not None and v > hi:
+        raise _err(src, where + key, f"value {v:g}: expected {what} <= {hi:g}")
+    return v
+
+
+def _int(tab, key, where, src, *, default: Any = ..., lo: int = 0, hi: int | None = None) -> int:
+    if key not in tab and default is not ...:
+        return default
+    v = tab.get(key)
+    if isinstance(v, bool) or not isinstance(v, int):
+        if key not in tab:
+            raise _err(src, where + key, "missing key; expected an integer")
+        raise _err(src, where + key, f"value {v!r}: expected an integer")
+    if v < lo or (hi is not None and v > hi):
+        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise _err(src, where + key, f"value {v}: expected an integer {rng}")
+    return v
+
+
+def _str(tab, key, where, src, *, choices: tuple[str, ...] | None = None, default: Any = ...) -> str:
+    if key not in tab:
+        if default is ...:
+            raise _err(src, where + key, "missing key; expected a string"
+                       + (f" among {list(choices)}" if choices else ""))
+        return default
+    v = tab[key]
+    if not isinstance(v, str) or (choices and v not in choices):
+        raise _err(src, where + key, f"value {v!r}: expected "
+                   + (f"one of {list(choices)}" if choices else "a string"))
+    return v
+
+
+_CHANNEL_KEYS = {"name", "kind", "physical", "sensitivity", "range_v", "coupling", "x", "y",
+                 "mass_kg", "length_m", "excitation_current_a", "distance_m", "direction_deg",
+                 "volts_per_strain"}
+_DEVICE_KEYS = {"role", "product", "backend", "max_rate_hz", "rate_hz", "samples", "pretrigger",
+                "adc_bits", "noise_v", "trigger_jitter_s", "antialias", "trigger", "channels",
+                "trigger_timeout_s"}
+
+
+def _channel(tab: Any, where: str, src: str, source: Source) -> tuple[ChannelConfig, WaveSensor | None]:
+    if not isinstance(tab, Mapping):
+        raise _err(src, where.rstrip("."), f"value {tab!r}: expected a [[channels]] table")
+    _keys(tab, _CHANNEL_KEYS, where, src)
+    name = _str(tab, "name", where, src)
+    kind = _str(tab, "kind", where, src, choices=KINDS, default="voltage")
+    coupling = _str(tab, "coupling", where, src, choices=COUPLINGS,
+                    default="IEPE" if kind in ("accelerometer", "force") else "DC")
+    sens = _num(tab, "sensitivity", where, src, lo=0.0, lo_open=True,
+                what="a positive sensitivity in V per physical unit")
+    rng = _num(tab, "range_v", where, src, default=5.0, lo=0.0, lo_open=True,
+               what="a positive input range in V")
+    x = _num(tab, "x", where, src, default=None, what="a position in m")
+    y = _num(tab, "y", where, src, default=None, what="a position in m")
+    if (x is None) != (y is None):
+        raise _err(src, where + ("y" if y is None else "x"), "expected both x and y (m), or neither")
+    mass = _num(tab, "mass_kg", where, src, default=0.0, lo=0.0, what="a mass in kg")
+    length = _num(tab, "length_m", where, src, default=0.0, lo=0.0, what="a length in m")
+    iexc = _num(tab, "excitation_current_a", where, src, default=0.004, lo=0.0, what="a current in A")
+    wave = None
+    if "distance_m" in tab:
+        d = _num(tab, "distance_m", where, src, lo=0.0, lo_open=True, what="a positive distance in m")
+        ang = _num(tab, "direction_deg", where, src, default=0.0, what="an angle in degrees")
+        vps = _num(tab, "volts_per_strain", where, src, default=1.0e4, lo=0.0, lo_open=True,
+                   what="a positive transduction in V per unit strain")
+        wave = WaveSensor(name, d, ang, vps, length)
+        if x is None:
+            x = source.x + d * math.cos(math.radians(ang))
+            y = source.y + d * math.sin(math.radians(ang))
+    elif kind == "accelerometer" and x is None:
+        raise _err(src, where + "x", "missing key; an accelerometer needs its position x, y in m")
+    return ChannelConfig(name=name, kind=kind, physical=_str(tab, "physical", where, src, default=""),
+                         sensitivity=sens, range_v=rng, coupling=coupling, x=x, y=y, mass_kg=mass,
+                         length_m=length, excitation_current_a=iexc), wave
+
+
+def _device(name: str, tab: Any, src: str, wave_source: Source) -> tuple[DeviceSpec, list[WaveSensor]]:
+    where = f"devices.{name}."
+    if not isinstance(tab, Mapping):
+        raise _err(src, where.rstrip("."), f"value {tab!r}: expected a table")
+    _keys(tab, _DEVICE_KEYS, where, src)
+    role = _str(tab, "role", where, src, choices=ROLES)
+    max_rate = _num(tab, "max_rate_hz", where, src, default=DEFAULT_MAX_RATE_HZ, lo=0.0, lo_open=True,
+                    what="a positive maximum rate in Hz")
+    rate = _num(tab, "rate_hz", where, src, what="a sample rate in Hz")
+    if rate <= 0:
+        raise _err(src, where + "rate_hz", f"value {rate:g}: impossible sample rate; expected a rate > 0 Hz")
+    if rate > max_rate:
+        raise _err(src, where + "rate_hz", f"value {rate:g}: impossible sample rate; expected at most "
+                   f"max_rate_hz = {max_rate:g} Hz for this device")
+    samples = _int(tab, "samples", where, src, lo=2, hi=100_000_000)
+    pre = _int(tab, "pretrigger", where, src, default=0, lo=0, hi=samples - 1)
+    chans_raw = tab.get("channels")
+    if not isinstance(chans_raw, list) or not chans_raw:
+        raise _err(src, where + "channels", "missing or empty; expected [[devices.NAME.channels]] tables")
+    chans, waves = [], []
+    for i, ct in enumerate(chans_raw):
+        c, w = _channel(ct, f"{where}channels[{i}].", src, wave_source)
+        if any(o.name == c.name for o in chans):
+            raise _err(src, f"{where}channels[{i}].name", f"value {c.name!r}: duplicate channel name")
+        chans.append(c)
+        if w:
+            waves.append(w)
+    names = [c.name for c in chans]
+    trigger = None
+    if "trigger" in tab:
+        tt = _table(tab, "trigger", src, where)
+        tw = where + "trigger."
+        _keys(tt, {"channel", "level_v", "slope"}, tw, src)
+        ch = _str(tt, "channel", tw, src)
+        if ch not in names:
+            raise _err(src, tw + "channel", f"value {ch!r}: unknown channel; expected one of {names}")
+        level = _num(tt, "level_v", tw, src, default=0.5, what="a trigger level in V")
+        rng = next(c.range_v for c in chans if c.name == ch)
+        if abs(level) >= rng:
+            raise _err(src, tw + "level_v", f"value {level:g}: expected a level inside the "
+                       f"+/-{rng:g} V range of channel {ch!r}")
+        trigger = Trigger(ch, level, _str(tt, "slope", tw, src, choices=("rising", "falling"),
+                                          default="rising"))
+    aa_tab = _table(tab, "antialias", src, where)
+    aw = where + "antialias."
+    _keys(aa_tab, {"kind", "order", "cutoff_ratio"}, aw, src)
+    aa = AntiAlias(_str(aa_tab, "kind", aw, src, choices=FILTERS, default="butterworth"),
+                   _int(aa_tab, "order", aw, src, default=6, lo=1, hi=12),
+                   _num(aa_tab, "cutoff_ratio", aw, src, default=0.45, lo=0.0, lo_open=True, hi=0.5,
+                        what="a cutoff as a fraction of the sample rate"))
+    dev = DeviceSpec(
+        name=name, role=role, channels=tuple(chans), timing=Timing(rate, samples, pre), trigger=trigger,
+        product=_str(tab, "product", where, src, default=""), max_rate_hz=max_rate,
+        adc_bits=_int(tab, "adc_bits", where, src, default=16, lo=8, hi=32),
+        noise_v=_num(tab, "noise_v", where, src, default=0.0, lo=0.0, what="a noise level in V rms"),
+        trigger_jitter_s=_num(tab, "trigger_jitter_s", where, src, default=0.0, lo=0.0,
+                              what="a jitter in s"),
+        antialias=aa,
+        trigger_timeout_s=_num(tab, "trigger_timeout_s", where, src, default=10.0, lo=0.0, lo_open=True,
+                               what="a timeout in s"))
+    return dev, waves
+
+
+def _source(tab: Mapping, key: str, src: str, kinds: tuple[str, ...], default_kind: str) -> Source:
+    where = key + "."
+    _keys(tab, {"kind", "x", "y", "force_n", "contact_s", "rise_s"}, where, src)
+    return Source(
+        kind=_str(tab, "kind", where, src, choices=kinds, default=default_kind),
+        x=_num(tab, "x", where, src, what="a position in m"),
+        y=_num(tab, "y", where, src, what="a position in m"),
+        force_n=_num(tab, "force_n", where, src, default=1.0, lo=0.0, lo_open=True, what="a force in N"),
+        contact_s=_num(tab, "contact_s", where, src, default=2.0e-4, lo=0.0, lo_open=True,
+                       what="a contact duration in s"),
+        rise_s=_num(tab, "rise_s", where, src, default=1.0e-6, lo=0.0, lo_open=True,
+                    what="a rise time in s"))
+
+
+def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "") -> Rig:
+    """Build and validate a Rig from a parsed TOML table."""
+    _keys(doc, {"name", "session", "hammer", "wave_source", "supports", "simulation", "devices"}, "", src)
+    ham = _source(_table(doc, "hammer", src, required=True), "hammer", src, ("hammer",), "hammer")
+    ws_tab = _table(doc, "wave_source", src)
+    wsrc = _source(ws_tab, "wave_source", src, ("pencil", "hammer"), "pencil") if ws_tab else ham
+    sess = _table(doc, "session", src)
+    _keys(sess, {"hits", "waves", "max_retries"}, "session.", src)
+    simt = _table(doc, "simulation", src)
+    sw = "simulation."
+    _keys(simt, set(SimSettings.__dataclass_fields__), sw, src)
+    d0 = SimSettings()
+    sim = SimSettings(
+        modal_damping=_num(simt, "modal_damping", sw, src, default=d0.modal_damping, lo=0.0, hi=0.5,
+                           what="a damping ratio"),
+        n_modes=_int(simt, "n_modes", sw, src, default=d0.n_modes, lo=1, hi=500),
+        force_spread=_num(simt, "force_spread", sw, src, default=d0.force_spread, lo=0.0, hi=1.0,
+                          what="a relative scatter"),
+        double_hit_probability=_num(simt, "double_hit_probability", sw, src,
+                                    default=d0.double_hit_probability, lo=0.0, hi=1.0, what="a probability"),
+        double_hit_delay_s=_num(simt, "double_hit_delay_s", sw, src, default=d0.double_hit_delay_s,
+                                lo=0.0, lo_open=True, what="a delay in s"),
+        double_hit_ratio=_num(simt, "double_hit_ratio", sw, src, default=d0.double_hit_ratio, lo=0.0,
+                              what="a force ratio"),
+        miss_probability=_num(simt, "miss_probability", sw, src, default=d0.miss_probability, lo=0.0,
+                              hi=1.0, what="a probability"),
+        wave_fmax_hz=_num(simt, "wave_fmax_hz", sw, src, default=d0.wave_fmax_hz, lo=0.0, lo_open=True,
+                          what="a frequency in Hz"))
+    devs_tab = _table(doc, "devices", src, required=True)
+    if not devs_tab:
+        raise _err(src, "devices", "empty; expected at least one [devices.NAME] table")
+    devices, waves = [], []
+    for name, tab in devs_tab.items():
+        dev, w = _device(name, tab, src, wsrc)
+        if any(d.role == dev.role for d in devices):
+            raise _err(src, f"devices.{name}.role", f"value {dev.role!r}: another device already has this role")
+        devices.append(dev)
+        waves += w
+    names = [c.name for d in devices for c in d.channels]
+    dup = {n for n in names if names.count(n) > 1}
+    if dup:
+        raise _err(src, "devices", f"channel name(s) {sorted(dup)} used on two devices; expected unique names")
+    sup = doc.get("supports", [])
+    if not isinstance(sup, list):
+        raise _err(src, "supports", f"value {sup!r}: expected [[supports]] tables with x, y in m")
+    supports = []
+    for i, s in enumerate(sup):
+        if not isinstance(s, Mapping):
+            raise _err(src, f"supports[{i}]", f"value {s!r}: expected a table with x, y in m")
+        _keys(s, {"x", "y"}, f"supports[{i}].", src)
+        supports.append((_num(s, "x", f"supports[{i}].", src, what="a position in m"),
+                         _num(s, "y", f"supports[{i}].", src, what="a position in m")))
+    return Rig(name=str(doc.get("name", Path(src).stem)), devices=tuple(devices), hammer=ham,
+               wave_source=wsrc, wave_sensors=tuple(waves), supports=tuple(supports), sim=sim,
+               hits=_int(sess, "hits", "session.", src, default=5, lo=0),
+               waves=_int(sess, "waves", "session.", src, default=3, lo=0),
+               max_retries=_int(sess, "max_retries", "session.", src, default=5, lo=0),
+               text=text, source=src)
+
+
+def read_rig_text(path: str | Path | None) -> tuple[str, str]:
+    """(TOML text, source label) of a rig file, or of the built-in rig for None/'default'."""
+    p = "default" if path is None else str(path)
+    if p in BUILTIN:
+        return resources.files("labid.data").joinpath(BUILTIN[p]).read_text(), f"builtin:{p}"
+    try:
+        return Path(p).read_text(), p
+    except FileNotFoundError:
+        raise UserError("file not found; expected a rig TOML file (or 'default')", file=p) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise UserError(f"cannot read: {getattr(e, 'strerror', None) or e}", file=p) from None
+
+
+def rig_from_text(text: str, src: str = "<inline>") -> Rig:
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise UserError(f"malformed TOML ({e}); expected a rig file as in docs/rig-file.md",
+                        file=src) from None
+    return rig_from_dict(doc, src, text)
+
+
+def load_rig(path: str | Path | None = None) -> Rig:
+    """Read and validate a rig file; None or 'default' is the built-in simulated rig."""
+    text, src = read_rig_text(path)
+    return rig_from_text(text, src)
