@@ -1,0 +1,449 @@
+"""The simulated rig: a ``drivers.protocol.Device`` whose records are synthesised.
+
+Vibration shots (``role='hammer'``, ~10 kHz): the plate modes of
+``engine.plate_fe`` (mass-normalised shapes phi) respond to a half-sine hammer
+force F(t) = F0 sin(pi t / T), 0 <= t <= T, at (xh, yh). Each mode is a damped
+oscillator q'' + 2 zeta w q' + w^2 q = phi(xh, yh) F(t), solved in closed form
+(steady sine + free transient, and the same shifted by T, which cancels the
+sine after contact); accelerometer j reads sum_m phi_m(xj, yj) q_m''(t). The
+force channel reads F(t). Rigid-body/suspension modes are left out (they lie
+below the IEPE high-pass).
+
+Wave shots (``role='wave'``, 1-5 MHz): ``engine.safe.transient_response`` (surface
+strain along the path, infinite plate) from a pencil-lead break or a hammer,
+at each sensor's distance, times the sensor's volts per strain.
+
+What a real record has, in this order: the continuous signal on a grid
+``OVERSAMPLE`` times finer than the sample clock, the device's anti-alias
+filter (Butterworth/Bessel, causal: its group delay is in the data and in
+``meta['antialias_group_delay_s']``), a trigger found where the trigger channel
+crosses its level on the next tick of a free-running sample clock (plus
+optional extra jitter), pre-trigger samples, noise (V rms), the ADC (range
+clipping with an overload flag, quantisation to ``adc_bits``). Force scatter,
+double hits and missed triggers on request (rig ``[simulation]``).
+
+Unmodelled effects (``Effects``, CONTRACT names) are injected into the
+synthesis; engine results are cached per configuration, so repeated shots cost
+only the per-shot randomisation. Every random draw of shot k comes from
+``SeedSequence([seed, k])``: runs are reproducible shot by shot.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any, ClassVar
+
+import numpy as np
+from scipy import signal
+
+from drivers.protocol import ChannelConfig, NoTrigger, Record, Timing, Trigger
+from engine.laminate import Laminate
+
+OVERSAMPLE = 4
+
+#: temperature coefficients of the moduli, 1/K: E -> E (1 + alpha dT)
+ALPHA_FIBRE = -1.0e-4      # E1 of an orthotropic ply (fibre dominated)
+ALPHA_MATRIX = -2.0e-3     # E2, G12, G13, G23 (matrix dominated)
+ALPHA_ISOTROPIC = -4.0e-4  # E, G of an isotropic metal (aluminium ~ -0.04 %/K)
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Unmodelled effects injected into the simulated rig (CONTRACT names, SI units).
+
+    sensor_mass: kg added to the plate at every accelerometer position.
+    support_stiffness: N/m, a transverse spring at every rig support point.
+    temperature: K, specimen temperature minus the temperature its constants
+        hold at; moduli scale by (1 + alpha dT), alpha = ALPHA_FIBRE for E1,
+        ALPHA_MATRIX for E2, G12, G13, G23, ALPHA_ISOTROPIC for E, G.
+    thickness: relative thickness error, h_true = h (1 + thickness) (every ply).
+    timing_offset: s, delay added to every wave-sensor channel.
+    path_length: m, added to every wave-sensor distance.
+    sensor_aperture: m, wave-sensor strain averaged over this length (replaces
+        the channel's nominal length_m).
+    viscoelastic: loss factor eta: modal damping ratio + eta/2; guided waves
+        attenuated by exp(-eta k x / 2), k = omega / c_phase(A0).
+    """
+
+    sensor_mass: float = 0.0
+    support_stiffness: float = 0.0
+    temperature: float = 0.0
+    thickness: float = 0.0
+    timing_offset: float = 0.0
+    path_length: float = 0.0
+    sensor_aperture: float = 0.0
+    viscoelastic: float = 0.0
+
+    UNITS: ClassVar[dict[str, str]] = {
+        "sensor_mass": "kg", "support_stiffness": "N/m", "temperature": "K",
+        "thickness": "1", "timing_offset": "s", "path_length": "m",
+        "sensor_aperture": "m", "viscoelastic": "1"}
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    def active(self) -> dict[str, float]:
+        """The non-zero effects, name -> magnitude."""
+        return {k: v for k, v in asdict(self).items() if v != 0.0}
+
+    @classmethod
+    def parse(cls, text: str) -> "Effects":
+        """From 'name=value,name=value' (ValueError naming the bad item)."""
+        kw: dict[str, float] = {}
+        for item in filter(None, (s.strip() for s in text.split(","))):
+            name, sep, val = item.partition("=")
+            name = name.strip()
+            if not sep or name not in cls.UNITS:
+                raise ValueError(f"effect {item!r}: expected NAME=VALUE with NAME one of {list(cls.names())}")
+            try:
+                kw[name] = float(val)
+            except ValueError:
+                raise ValueError(f"effect {name}: value {val!r}: expected a number in "
+                                 f"{cls.UNITS[name]}") from None
+            if not math.isfinite(kw[name]):
+                raise ValueError(f"effect {name}: value {val!r}: expected a finite number")
+        e = cls(**kw)
+        e.check()
+        return e
+
+    def check(self) -> None:
+        for k in ("sensor_mass", "support_stiffness", "sensor_aperture", "viscoelastic"):
+            if getattr(self, k) < 0:
+                raise ValueError(f"effect {k} = {getattr(self, k)!r}: expected >= 0")
+        if self.thickness <= -1:
+            raise ValueError(f"effect thickness = {self.thickness!r}: expected > -1 (relative error)")
+
+
+def effective_laminate(lam: Laminate, effects: Effects) -> Laminate:
+    """The laminate as the simulated 'real' plate has it (temperature, thickness)."""
+    dT = effects.temperature
+    if dT:
+        for name, mat in lam.materials.items():
+            if mat.isotropic:
+                f = 1.0 + ALPHA_ISOTROPIC * dT
+                p = {"E": mat.E1 * f, "G": mat.G12 * f}
+            else:
+                fm = 1.0 + ALPHA_MATRIX * dT
+                p = {"E1": mat.E1 * (1.0 + ALPHA_FIBRE * dT), "E2": mat.E2 * fm,
+                     "G12": mat.G12 * fm, "G13": mat.G13 * fm, "G23": mat.G23 * fm}
+            lam = lam.with_params(p, material=name)
+    if effects.thickness:
+        lam = lam.scaled_thickness(1.0 + effects.thickness)
+    return lam
+
+
+# -- cached engine results ---------------------------------------------------
+@functools.lru_cache(maxsize=16)
+def plate_modes(lam: Laminate, length: float, width: float, n_modes: int,
+                masses: tuple = (), springs: tuple = (), mesh=None):
+    """(PlateModel, Modes) for the plate with point masses/springs; cached."""
+    from engine.plate_fe import PlateModel
+    model = PlateModel.build(lam, length, width, mesh)
+    if masses:
+        model = model.with_point_masses(masses)
+    if springs:
+        model = model.with_springs(springs)
+    return model, model.solve(n_modes)
+
+
+def half_sine(t: np.ndarray, contact_s: float) -> np.ndarray:
+    """Unit-peak half-sine force sin(pi t / T) on 0 <= t <= T, else 0."""
+    return np.where((t >= 0) & (t <= contact_s), np.sin(np.pi * np.clip(t, 0, None) / contact_s), 0.0)
+
+
+def modal_acceleration(t: np.ndarray, omega: np.ndarray, zeta: np.ndarray, contact_s: float) -> np.ndarray:
+    """(n_modes, n_t) q'' of q'' + 2 zeta w q' + w^2 q = sin(pi t/T) [0 <= t <= T], q(0)=q'(0)=0.
+
+    Exact closed form (steady sine + free transient, superposed with the same
+    shifted by T). omega in rad/s, zeta < 1, t in s.
+    """
+    W = np.pi / contact_s
+    w = np.asarray(omega, float)[:, None]
+    z = np.asarray(zeta, float)[:, None]
+    H = 1.0 / (w**2 - W**2 + 2j * z * w * W)
+    sig = -z * w
+    wd = w * np.sqrt(1.0 - z**2)
+    c1 = -H.imag
+    c2 = (-W * H.real - sig * c1) / wd
+    s = sig + 1j * wd
+    C = (c1 - 1j * c2) * s**2
+
+    def g(tt):
+        tp = np.clip(tt, 0.0, None)
+        a = -W**2 * (H * np.exp(1j * W * tp)).imag + (C * np.exp(s * tp)).real
+        return np.where(tt >= 0, a, 0.0)
+
+    return g(t[None, :]) + g(t[None, :] - contact_s)
+
+
+def _butter_or_bessel(kind: str, order: int, cutoff_hz: float, fs_hz: float):
+    if kind == "none":
+        return None, 0.0
+    if kind == "bessel":
+        sos = signal.bessel(order, cutoff_hz, fs=fs_hz, output="sos", norm="mag")
+    else:
+        sos = signal.butter(order, cutoff_hz, fs=fs_hz, output="sos")
+    b, a = signal.sos2tf(sos)
+    _, gd = signal.group_delay((b, a), w=[1e-6 * fs_hz], fs=fs_hz)
+    return sos, float(gd[0]) / fs_hz
+
+
+@dataclass
+class _Template:
+    """Per-configuration unit waveforms (volts per N of peak force) on the fine grid."""
+
+    fine: dict[str, np.ndarray]   # filtered, unit source amplitude
+    lead: int                     # fine samples before source onset
+    fs_fine: float
+    group_delay_s: float
+
+
+class SimulatedDevice:
+    """A simulated acquisition device for one role of a rig ('hammer' or 'wave').
+
+    Speaks ``drivers.protocol.Device``: configure(channels, timing, trigger),
+    arm(), read(timeout_s) -> Record, close(). ``rig`` and ``specimen`` supply
+    what the simulation needs beyond the protocol (source, sensor distances,
+    device ADC/noise/filter, ``[simulation]`` settings).
+    """
+
+    def __init__(self, rig, specimen, role: str, effects: Effects | None = None, seed: int = 0,
+                 double_hit: bool | None = None):
+        self.rig, self.specimen, self.role = rig, specimen, role
+        self.spec = rig.device(role)
+        if self.spec is None:
+            raise ValueError(f"rig has no device with role {role!r}")
+        self.name = f"sim:{self.spec.name}"
+        self.effects = effects or Effects()
+        self.effects.check()
+        self.seed = int(seed)
+        self.force_double_hit = double_hit
+        self.shot_index = 0
+        self._cfg: tuple | None = None
+        self._tpl: _Template | None = None
+        self._armed = False
+
+    # -- protocol -----------------------------------------------------------
+    def configure(self, channels: tuple[ChannelConfig, ...], timing: Timing,
+                  trigger: Trigger | None) -> None:
+        names = [c.name for c in channels]
+        if trigger is not None and trigger.channel not in names:
+            raise ValueError(f"trigger channel {trigger.channel!r} is not configured ({names})")
+        if timing.rate_hz <= 0 or timing.samples < 1 or not 0 <= timing.pretrigger < timing.samples:
+            raise ValueError(f"impossible timing {timing}")
+        cfg = (tuple(channels), timing, trigger)
+        if cfg != self._cfg:
+            self._cfg, self._tpl = cfg, None
+        self._armed = False
+
+    def arm(self) -> None:
+        if self._cfg is None:
+            raise RuntimeError("configure() before arm()")
+        if self._tpl is None:
+            self._tpl = self._template()
+        self._armed = True
+
+    def read(self, timeout_s: float = 10.0) -> Record:
+        if not self._armed:
+            raise RuntimeError("arm() before read()")
+        self._armed = False
+        k = self.shot_index
+        self.shot_index += 1
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, k]))
+        return self._synthesise(rng, k)
+
+    def close(self) -> None:
+        self._armed = False
+
+    # -- synthesis ------------------------------------------------------------
+    @property
+    def source(self):
+        return self.rig.hammer if self.role == "hammer" else self.rig.wave_source
+
+    def _template(self) -> _Template:
+        channels, timing, trigger = self._cfg
+        return _cached_template(self.rig, self.specimen, self.role, self.effects, channels, timing)
+
+    def _synthesise(self, rng: np.random.Generator, k: int) -> Record:
+        channels, timing, trigger = self._cfg
+        tpl, spec, sim, src = self._tpl, self.spec, self.rig.sim, self.source
+        miss = rng.random() < sim.miss_probability
+        amp = src.force_n * max(0.05, 1.0 + sim.force_spread * rng.standard_normal())
+        dbl = rng.random() < sim.double_hit_probability if self.force_double_hit is None \
+            else self.force_double_hit
+        dbl = dbl and src.kind == "hammer"
+        delay = int(round(sim.double_hit_delay_s * (1 + 0.2 * rng.uniform(-1, 1)) * tpl.fs_fine))
+        phase = int(rng.integers(OVERSAMPLE))
+        jitter = int(round(rng.standard_normal() * spec.trigger_jitter_s * tpl.fs_fine))
+        if miss:
+            raise NoTrigger(f"{self.name}: no trigger within {spec.trigger_timeout_s:g} s (simulated miss)")
+
+        def wave(name: str, idx: np.ndarray) -> np.ndarray:
+            u = tpl.fine[name]
+            i = np.clip(idx, 0, u.size - 1)
+            v = amp * np.where(idx < u.size, u[i], 0.0)
+            if dbl:
+                j = idx - delay
+                v += amp * sim.double_hit_ratio * np.where((j >= 0) & (j < u.size), u[np.clip(j, 0, u.size - 1)], 0.0)
+            return v
+
+        os_, n, pre = OVERSAMPLE, timing.samples, timing.pretrigger
+        if trigger is not None:
+            full = wave(trigger.channel, np.arange(tpl.fine[trigger.channel].size))
+            lv = trigger.level_v
+            hit = (full[:-1] < lv) & (full[1:] >= lv) if trigger.slope == "rising" else \
+                (full[:-1] > lv) & (full[1:] <= lv)
+            cross = np.flatnonzero(hit)
+            if cross.size == 0:
+                raise NoTrigger(f"{self.name}: channel {trigger.channel!r} never crossed "
+                                f"{lv:g} V ({trigger.slope}) within the record")
+            ic = int(cross[0]) + 1
+        else:
+            ic = tpl.lead
+        # first tick of the free-running sample clock at or after the crossing
+        it = ic + ((phase - ic) % os_) + jitter
+        idx = it + os_ * (np.arange(n) - pre)
+        data, over = {}, {}
+        for c in channels:
+            v = wave(c.name, idx) if c.name in tpl.fine else np.zeros(n)
+            if spec.noise_v:
+                v = v + spec.noise_v * rng.standard_normal(n)
+            R = c.range_v
+            lsb = 2.0 * R / 2.0**spec.adc_bits
+            over[c.name] = bool(np.any(np.abs(v) >= R))
+            codes = np.clip(np.rint(v / lsb), -2.0**(spec.adc_bits - 1), 2.0**(spec.adc_bits - 1) - 1)
+            data[c.name] = codes * lsb
+        onset_s = (tpl.lead - it) / tpl.fs_fine  # source onset relative to the trigger sample
+        meta: dict[str, Any] = {
+            "simulated": True, "device": self.name, "seed": self.seed, "shot_index": k,
+            "adc_bits": spec.adc_bits, "noise_v": spec.noise_v,
+            "antialias": asdict(spec.antialias), "antialias_group_delay_s": tpl.group_delay_s,
+            "source": src.kind, "source_xy_m": [src.x, src.y],
+            "sim_force_peak_n": amp, "sim_double_hit": bool(dbl),
+            "sim_double_hit_delay_s": delay / tpl.fs_fine if dbl else 0.0,
+            "sim_onset_s": onset_s, "effects": self.effects.active(),
+        }
+        return Record(data=data, channels=tuple(channels), timing=timing, trigger=trigger,
+                      overload=over, timestamp=time.time(), backend="mock", meta=meta)
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple, timing: Timing) -> _Template:
+    spec = rig.device(role)
+    fs = timing.rate_hz
+    fsf = OVERSAMPLE * fs
+    lead = OVERSAMPLE * (timing.pretrigger + 16)
+    nf = lead + OVERSAMPLE * (2 * timing.samples + 16)
+    t = (np.arange(nf) - lead) / fsf
+    lam = effective_laminate(specimen.laminate, effects)
+    raw: dict[str, np.ndarray] = {}
+    if role == "hammer":
+        raw = _vibration(rig, specimen, lam, effects, channels, t)
+    else:
+        raw = _waves(rig, lam, effects, channels, fs, timing.samples, lead, nf)
+    sos, gd = _butter_or_bessel(spec.antialias.kind, spec.antialias.order,
+                                spec.antialias.cutoff_ratio * fs, fsf)
+    fine = {k: (signal.sosfilt(sos, v) if sos is not None else v) for k, v in raw.items()}
+    return _Template(fine, lead, fsf, gd)
+
+
+def _vibration(rig, specimen, lam, effects, channels, t) -> dict[str, np.ndarray]:
+    sim, ham = rig.sim, rig.hammer
+    accs = [c for c in channels if c.kind == "accelerometer"]
+    masses = tuple((c.x, c.y, effects.sensor_mass) for c in accs) if effects.sensor_mass else ()
+    springs = tuple((x, y, effects.support_stiffness) for x, y in rig.supports) \
+        if effects.support_stiffness else ()
+    out: dict[str, np.ndarray] = {}
+    for c in channels:
+        if c.kind == "force":
+            out[c.name] = c.sensitivity * half_sine(t, ham.contact_s)
+    if accs:
+        model, modes = plate_modes(lam, specimen.length, specimen.width, sim.n_modes, masses, springs)
+        pts = np.array([[ham.x, ham.y]] + [[c.x, c.y] for c in accs])
+        phi = model.shapes_at(modes, pts)                    # (n_modes, 1 + n_acc)
+        omega = np.sqrt(np.maximum(modes.omega2, 0.0))
+        zeta = np.full(omega.shape, sim.modal_damping + effects.viscoelastic / 2.0)
+        acc = np.zeros((len(accs), t.size))
+        for lo in range(0, omega.size, 10):                  # bounded memory
+            q = modal_acceleration(t, omega[lo:lo + 10], zeta[lo:lo + 10], ham.contact_s)
+            acc += (phi[lo:lo + 10, 1:] * phi[lo:lo + 10, :1]).T @ q
+        for j, c in enumerate(accs):
+            out[c.name] = c.sensitivity * acc[j]
+    return out
+
+
+def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.ndarray]:
+    from engine import safe
+    src, sim = rig.wave_source, rig.sim
+    fmax = min(sim.wave_fmax_hz, 0.45 * fs)
+    n_base = 2 * samples + 16
+    if src.kind == "pencil":
+        force = safe.pencil_lead_break(rise_s=src.rise_s, amplitude_n=1.0)
+    else:
+        force = safe.hammer_force(src.contact_s, amplitude_n=1.0)
+    out: dict[str, np.ndarray] = {}
+    tf = (np.arange(nf) - lead) / (OVERSAMPLE * fs)
+    for c in channels:
+        if c.kind == "force":
+            out[c.name] = c.sensitivity * (half_sine(tf, src.contact_s) if src.kind == "hammer"
+                                           else np.clip(tf / src.rise_s, 0.0, 1.0) * (tf >= 0))
+            continue
+        ws = rig.wave_sensor(c.name)
+        if ws is None:
+            continue
+        d = ws.distance_m + effects.path_length
+        ap = effects.sensor_aperture if effects.sensor_aperture > 0 else ws.length_m
+        strain = _transient(lam, d, force, fs, n_base, ws.direction_deg, ap, fmax)
+        v = ws.volts_per_strain * c.sensitivity * strain
+        out[c.name] = _upsample(v, fs, lead, nf, effects.timing_offset,
+                                _attenuation(lam, d, effects.viscoelastic, ws.direction_deg))
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _transient(lam, d, force, fs, n, direction_deg, aperture, fmax):
+    from engine import safe
+    return np.asarray(safe.transient_response(lam, d, force, fs, n, direction_deg=direction_deg,
+                                              quantity="strain", sensor_length_m=aperture,
+                                              source="point", fmax_hz=fmax), float)
+
+
+def _attenuation(lam, d: float, eta: float, direction_deg: float):
+    """f (Hz) -> exp(-eta k d / 2), k = 2 pi f / c_phase(A0); None when eta = 0."""
+    if eta <= 0:
+        return None
+    from engine import safe
+
+    def att(f: np.ndarray) -> np.ndarray:
+        f = np.asarray(f, float)
+        fp = np.linspace(max(f[1], 1.0), f[-1], 64)
+        cp = _a0_phase_velocity(lam, fp, direction_deg)
+        k = 2 * np.pi * f / np.interp(f, fp, cp)
+        return np.exp(-eta * k * d / 2.0)
+    return att
+
+
+def _a0_phase_velocity(lam, f: np.ndarray, direction_deg: float) -> np.ndarray:
+    from engine import safe
+    return np.asarray(safe.phase_velocity(lam, f, mode="A0", direction_deg=direction_deg), float)
+
+
+def _upsample(v: np.ndarray, fs: float, lead: int, nf: int, delay_s: float, att) -> np.ndarray:
+    """Band-limited interpolation of v (t=0 at sample 0) to the fine grid, with an
+    optional pure delay and a frequency-domain attenuation; lead fine zeros first."""
+    n = v.size
+    npad = 2 * n
+    V = np.fft.rfft(v, npad)
+    f = np.fft.rfftfreq(npad, 1.0 / fs)
+    if delay_s:
+        V = V * np.exp(-2j * np.pi * f * delay_s)
+    if att is not None:
+        V = V * att(f)
+    fine = np.fft.irfft(V, OVERSAMPLE * npad) * OVERSAMPLE
+    out = np.zeros(nf)
+    m = min(nf - lead, fine.size)
+    out[lead:lead + m] = fine[:m]
+    return out
