@@ -45,6 +45,7 @@ class DeviceSpec:
     timing: Timing
     trigger: Trigger | None
     product: str = ""
+    daq_device: str = ""
     max_rate_hz: float = DEFAULT_MAX_RATE_HZ
     adc_bits: int = 16
     noise_v: float = 0.0
@@ -214,7 +215,7 @@ def _str(tab, key, where, src, *, choices: tuple[str, ...] | None = None, defaul
 _CHANNEL_KEYS = {"name", "kind", "physical", "sensitivity", "range_v", "coupling", "x", "y",
                  "mass_kg", "length_m", "excitation_current_a", "distance_m", "direction_deg",
                  "volts_per_strain"}
-_DEVICE_KEYS = {"role", "product", "backend", "max_rate_hz", "rate_hz", "samples", "pretrigger",
+_DEVICE_KEYS = {"role", "product", "daq_device", "max_rate_hz", "rate_hz", "samples", "pretrigger",
                 "adc_bits", "noise_v", "trigger_jitter_s", "antialias", "trigger", "channels",
                 "trigger_timeout_s"}
 
@@ -308,6 +309,7 @@ def _device(name: str, tab: Any, src: str, wave_source: Source) -> tuple[DeviceS
     dev = DeviceSpec(
         name=name, role=role, channels=tuple(chans), timing=Timing(rate, samples, pre), trigger=trigger,
         product=_str(tab, "product", where, src, default=""), max_rate_hz=max_rate,
+        daq_device=_str(tab, "daq_device", where, src, default=""),
         adc_bits=_int(tab, "adc_bits", where, src, default=16, lo=8, hi=32),
         noise_v=_num(tab, "noise_v", where, src, default=0.0, lo=0.0, what="a noise level in V rms"),
         trigger_jitter_s=_num(tab, "trigger_jitter_s", where, src, default=0.0, lo=0.0,

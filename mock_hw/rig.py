@@ -25,7 +25,7 @@ double hits and missed triggers on request (rig ``[simulation]``).
 Unmodelled effects (``Effects``, CONTRACT names) are injected into the
 synthesis; engine results are cached per configuration, so repeated shots cost
 only the per-shot randomisation. Every random draw of shot k comes from
-``SeedSequence([seed, k])``: runs are reproducible shot by shot.
+``SeedSequence([seed, role, k])``: runs are reproducible shot by shot.
 """
 from __future__ import annotations
 
@@ -42,6 +42,7 @@ from drivers.protocol import ChannelConfig, NoTrigger, Record, Timing, Trigger
 from engine.laminate import Laminate
 
 OVERSAMPLE = 4
+ROLE_IDS = {"hammer": 0, "wave": 1}
 
 #: temperature coefficients of the moduli, 1/K: E -> E (1 + alpha dT)
 ALPHA_FIBRE = -1.0e-4      # E1 of an orthotropic ply (fibre dominated)
@@ -252,7 +253,7 @@ class SimulatedDevice:
         self._armed = False
         k = self.shot_index
         self.shot_index += 1
-        rng = np.random.default_rng(np.random.SeedSequence([self.seed, k]))
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, ROLE_IDS[self.role], k]))
         return self._synthesise(rng, k)
 
     def close(self) -> None:

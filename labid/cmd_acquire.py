@@ -1,0 +1,90 @@
+"""``labid acquire``: a headless acquisition session appended to a run file.
+
+Progress goes to stderr, one line per event. Ctrl-C stops after the shot in
+progress (a second Ctrl-C at once); every recorded shot is kept, the summary
+is written, and the exit status is 130.
+"""
+from __future__ import annotations
+
+import signal
+import sys
+
+from .cli import add_json_option, write_json
+from .errors import UserError
+
+
+def register(sub) -> None:
+    p = sub.add_parser("acquire", help="headless acquisition session (appends to RUN.h5)",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("--rig", default="default", metavar="RIG.toml",
+                   help="rig file, or 'default' for the built-in simulated rig (default)")
+    p.add_argument("--specimen", required=True, metavar="SPEC.toml",
+                   help="specimen file, or a built-in name ('cfrp', 'aluminium')")
+    p.add_argument("--out", required=True, metavar="RUN.h5", help="run file (created or appended to)")
+    p.add_argument("--backend", choices=("mock", "nidaqmx"), default="mock",
+                   help="simulated rig (mock, default) or NI-DAQmx hardware")
+    p.add_argument("--hits", type=int, default=None, metavar="N", help="hammer hits (rig default)")
+    p.add_argument("--waves", type=int, default=None, metavar="M", help="wave shots (rig default)")
+    p.add_argument("--total", action="store_true",
+                   help="N and M count the shots already in RUN.h5 (resume to the planned size)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed of the simulated rig")
+    p.add_argument("--effects", default="", metavar="NAME=V,..",
+                   help="unmodelled effects injected into the simulated rig, e.g. "
+                        "'sensor_mass=0.003,temperature=10' (CONTRACT effect names, SI units)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    add_json_option(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> dict:
+    from .acquisition import AcquisitionSession
+    from .runstore import RunStore
+
+    effects = None
+    if args.effects:
+        if args.backend != "mock":
+            raise UserError("effects can only be injected into the simulated rig; expected --backend mock",
+                            key="--effects")
+        from mock_hw.rig import Effects
+        try:
+            effects = Effects.parse(args.effects)
+        except ValueError as e:
+            raise UserError(str(e), key="--effects") from None
+    for opt in ("hits", "waves"):
+        v = getattr(args, opt)
+        if v is not None and v < 0:
+            raise UserError(f"value {v}: expected a non-negative count", key=f"--{opt}")
+
+    stop = {"flag": False}
+
+    def on_sigint(signum, frame):
+        stop["flag"] = True
+        signal.signal(signal.SIGINT, signal.default_int_handler)   # a second Ctrl-C: now
+        sys.stderr.write("labid acquire: stopping after the current shot (Ctrl-C again to abort)\n")
+
+    def progress(ev: dict) -> None:
+        if args.quiet:
+            return
+        sys.stderr.write(f"{ev['kind']} {ev['index']}/{ev['total']}: {ev['message']}\n")
+        sys.stderr.flush()
+
+    with RunStore(args.out, "a") as store:
+        session = AcquisitionSession(args.rig, args.specimen, store, backend=args.backend,
+                                     effects=effects, seed=args.seed)
+        old = signal.signal(signal.SIGINT, on_sigint)
+        try:
+            summary = session.run(args.hits, args.waves, progress=progress,
+                                  should_stop=lambda: stop["flag"], total=args.total)
+        finally:
+            signal.signal(signal.SIGINT, old)
+    rec = summary["recorded"]
+    sys.stderr.write(f"labid acquire: recorded {rec['hammer']} hammer and {rec['wave']} wave shots "
+                     f"into {args.out} ({summary['in_file']['hammer']} + {summary['in_file']['wave']} "
+                     "in the file)\n")
+    if summary["interrupted"]:
+        if args.json:
+            write_json(summary, args.json)
+        raise KeyboardInterrupt
+    if any(summary["gave_up"].values()):
+        sys.stderr.write("labid acquire: warning: gave up on a shot; " + "; ".join(summary["problems"][-1:]) + "\n")
+    return summary
