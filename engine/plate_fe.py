@@ -41,9 +41,11 @@ from .laminate import Laminate, Material, PhysicsError, abdh, transform_inplane,
 __all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "DEFAULT_ELEMENTS",
            "FEError"]
 
-#: Elements along the longer side by default (from the CFRP convergence study,
-#: bench/RESULTS.md): ten elastic modes converged to better than 0.1 %.
-DEFAULT_ELEMENTS = 8
+#: Default mesh (CFRP convergence study, bench/RESULTS.md): DEFAULT_ELEMENTS
+#: interior elements along the longer side plus an edge row of EDGE_LAYER
+#: plate thicknesses; ten elastic modes of the 12-ply CFRP within 0.05 %.
+DEFAULT_ELEMENTS = 6
+EDGE_LAYER = 2.0
 
 NODE_DOF = 5
 _SPARE = 4
@@ -64,17 +66,31 @@ class FEError(ValueError):
 
 
 # ---------------------------------------------------------------- mesh --
+def _edges(n: int, size: float, edges) -> np.ndarray:
+    if edges is None:
+        return np.linspace(0.0, size, n + 1)
+    e = np.asarray(edges, dtype=float)
+    if e.shape != (n + 1,) or not np.all(np.diff(e) > 0) or abs(e[0]) > 1e-12 * size \
+            or abs(e[-1] - size) > 1e-9 * size:
+        raise FEError(f"element edges {edges!r}: expected {n + 1} increasing values from 0 to {size} m")
+    return e
+
+
 @dataclass(frozen=True)
 class Mesh:
-    """Uniform nx x ny grid of 16-node elements on [0, length] x [0, width] (m).
+    """Tensor grid of nx x ny rectangular 16-node elements on [0, length] x [0, width] (m).
 
-    Nodes are numbered row by row (x fastest): node = iy * (3 nx + 1) + ix.
+    ``x_edges``/``y_edges`` (nx + 1 / ny + 1 element boundaries, m) give a
+    graded mesh; None means uniform. Each element has 4 x 4 equally spaced
+    nodes; nodes are numbered row by row (x fastest): node = iy * (3 nx + 1) + ix.
     """
 
     nx: int
     ny: int
     length: float
     width: float
+    x_edges: tuple[float, ...] | None = None
+    y_edges: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         for k in ("nx", "ny"):
@@ -85,14 +101,58 @@ class Mesh:
             v = getattr(self, k)
             if not (np.isfinite(v) and v > 0):
                 raise FEError(f"plate {k} = {v!r}: expected a positive value in m")
+        for k, n, size in (("x_edges", self.nx, self.length), ("y_edges", self.ny, self.width)):
+            e = getattr(self, k)
+            if e is not None:
+                object.__setattr__(self, k, tuple(float(v) for v in _edges(n, size, e)))
 
     @classmethod
-    def default(cls, length: float, width: float, n: int = DEFAULT_ELEMENTS) -> "Mesh":
-        """n elements along the longer side, near-square elements."""
+    def default(cls, length: float, width: float, thickness: float | None = None,
+                n: int | None = None) -> "Mesh":
+        """The default mesh (CFRP convergence study, bench/RESULTS.md).
+
+        n (default DEFAULT_ELEMENTS) near-square interior elements along the
+        longer side; with ``thickness`` (m) one extra element row of width
+        min(EDGE_LAYER * thickness, half an interior element) along every free
+        edge, which resolves the Mindlin free-edge boundary layer (without it
+        a uniform mesh converges only like O(h) there). Without ``thickness``:
+        a uniform mesh.
+        """
+        n = DEFAULT_ELEMENTS if n is None else n
         big = max(length, width)
-        nx = max(2, int(round(n * length / big)))
-        ny = max(2, int(round(n * width / big)))
-        return cls(nx, ny, float(length), float(width))
+        if thickness is None:
+            nx = max(2, int(round(n * length / big)))
+            ny = max(2, int(round(n * width / big)))
+            return cls(nx, ny, float(length), float(width))
+        edge = min(EDGE_LAYER * thickness, 0.5 * min(length, width) / (n + 2))
+        return cls.graded(length, width, n, [edge])
+
+    @classmethod
+    def graded(cls, length: float, width: float, n: int, edge: Sequence[float]) -> "Mesh":
+        """n uniform interior elements along the longer side plus, at every edge,
+        layers of widths ``edge`` (m, outermost first)."""
+        big = max(length, width)
+        out = []
+        for size in (length, width):
+            edge_ = np.asarray(edge, dtype=float)
+            inner = size - 2.0 * edge_.sum()
+            if inner <= 0:
+                raise FEError(f"edge layers {list(edge)!r} m do not fit in {size} m")
+            m = max(2, int(round(n * size / big)))
+            widths = np.concatenate([edge_, np.full(m, inner / m), edge_[::-1]])
+            out.append(np.concatenate([[0.0], np.cumsum(widths)]))
+        out[0][-1], out[1][-1] = length, width
+        return cls(len(out[0]) - 1, len(out[1]) - 1, float(length), float(width),
+                   tuple(out[0]), tuple(out[1]))
+
+    @property
+    def xe(self) -> np.ndarray:
+        """Element boundaries along x (nx + 1), m."""
+        return _edges(self.nx, self.length, self.x_edges)
+
+    @property
+    def ye(self) -> np.ndarray:
+        return _edges(self.ny, self.width, self.y_edges)
 
     @property
     def nnx(self) -> int:
@@ -111,20 +171,25 @@ class Mesh:
         return NODE_DOF * self.n_nodes
 
     @property
-    def dx(self) -> float:
-        return self.length / self.nx
+    def n_elements(self) -> int:
+        return self.nx * self.ny
 
-    @property
-    def dy(self) -> float:
-        return self.width / self.ny
+    @staticmethod
+    def _node_line(e: np.ndarray) -> np.ndarray:
+        h = np.diff(e)
+        return np.concatenate([(e[:-1, None] + h[:, None] * np.array([0.0, 1 / 3, 2 / 3])).ravel(), e[-1:]])
 
     @property
     def coords(self) -> np.ndarray:
         """(n_nodes, 2) node coordinates, m."""
-        x = np.linspace(0.0, self.length, self.nnx)
-        y = np.linspace(0.0, self.width, self.nny)
-        X, Y = np.meshgrid(x, y)
+        X, Y = np.meshgrid(self._node_line(self.xe), self._node_line(self.ye))
         return np.column_stack([X.ravel(), Y.ravel()])
+
+    @property
+    def element_sizes(self) -> np.ndarray:
+        """(n_elements, 2) element sizes (hx, hy), m; element = ey * nx + ex."""
+        HX, HY = np.meshgrid(np.diff(self.xe), np.diff(self.ye))
+        return np.column_stack([HX.ravel(), HY.ravel()])
 
     @property
     def connectivity(self) -> np.ndarray:
@@ -141,8 +206,8 @@ class Mesh:
         c = self.connectivity
         return (NODE_DOF * c[:, :, None] + np.arange(NODE_DOF)).reshape(c.shape[0], -1)
 
-    def locate(self, points: np.ndarray, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Element index and local coordinates (xi, eta in [-1, 1]) of (x, y) points."""
+    def locate(self, points, tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Element index and local coordinates (xi, eta in [-1, 1]) of (x, y) points (m)."""
         p = np.atleast_2d(np.asarray(points, dtype=float))
         if p.ndim != 2 or p.shape[1] != 2:
             raise FEError(f"points of shape {p.shape}: expected (n, 2) x, y in m")
@@ -153,10 +218,12 @@ class Mesh:
             k = int(np.flatnonzero(bad)[0])
             raise FEError(f"point ({x[k]!r}, {y[k]!r}) lies outside the plate "
                           f"[0, {self.length}] x [0, {self.width}] m")
-        ex = np.clip(np.floor(x / self.dx).astype(int), 0, self.nx - 1)
-        ey = np.clip(np.floor(y / self.dy).astype(int), 0, self.ny - 1)
-        xi = np.clip(2.0 * (x - ex * self.dx) / self.dx - 1.0, -1.0, 1.0)
-        eta = np.clip(2.0 * (y - ey * self.dy) / self.dy - 1.0, -1.0, 1.0)
+        xe, ye = self.xe, self.ye
+        ex = np.clip(np.searchsorted(xe, x, side="right") - 1, 0, self.nx - 1)
+        ey = np.clip(np.searchsorted(ye, y, side="right") - 1, 0, self.ny - 1)
+        hx, hy = xe[ex + 1] - xe[ex], ye[ey + 1] - ye[ey]
+        xi = np.clip(2.0 * (x - xe[ex]) / hx - 1.0, -1.0, 1.0)
+        eta = np.clip(2.0 * (y - ye[ey]) / hy - 1.0, -1.0, 1.0)
         return ey * self.nx + ex, xi, eta
 
 
@@ -172,23 +239,39 @@ def _lagrange(nodes: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     return P @ C, dP @ C
 
 
-def _shape_2d(xi: np.ndarray, eta: np.ndarray, dx: float, dy: float):
-    """16 bicubic shape functions and x, y derivatives at points (npts, 16)."""
+def _shape_2d(xi: np.ndarray, eta: np.ndarray):
+    """16 bicubic shape functions and their xi, eta derivatives at points (npts, 16)."""
     Nx, dNx = _lagrange(_NODES_1D, xi)
     Ny, dNy = _lagrange(_NODES_1D, eta)
-    N = (Ny[:, :, None] * Nx[:, None, :]).reshape(len(xi), 16)
-    Nxd = (Ny[:, :, None] * dNx[:, None, :]).reshape(len(xi), 16) * (2.0 / dx)
-    Nyd = (dNy[:, :, None] * Nx[:, None, :]).reshape(len(xi), 16) * (2.0 / dy)
-    return N, Nxd, Nyd
+    n = len(np.atleast_1d(xi))
+    N = (Ny[:, :, None] * Nx[:, None, :]).reshape(n, 16)
+    Nxi = (Ny[:, :, None] * dNx[:, None, :]).reshape(n, 16)
+    Neta = (dNy[:, :, None] * Nx[:, None, :]).reshape(n, 16)
+    return N, Nxi, Neta
 
 
-def _unit_element_matrices(dx: float, dy: float) -> tuple[np.ndarray, np.ndarray]:
-    """Unit element stiffness (21, 80, 80) per COEF_NAMES and mass (3, 80, 80) per I1, I2, I3."""
+#: scale combinations (p, q) of the reference matrices, p, q in {0: no
+#: derivative, x: d/dxi, y: d/deta}; element factor s_pq(hx, hy) below.
+_COMBOS = ("00", "0x", "0y", "xx", "xy", "yy")
+
+
+def _combo_scales(h: np.ndarray) -> np.ndarray:
+    """(n, 6) factors s_pq = hx hy / 4 * f_p f_q with f_0 = 1, f_x = 2/hx, f_y = 2/hy."""
+    hx, hy = h[:, 0], h[:, 1]
+    return np.column_stack([hx * hy / 4.0, hy / 2.0, hx / 2.0, hy / hx, np.ones_like(hx), hx / hy])
+
+
+def _reference_matrices() -> tuple[np.ndarray, np.ndarray]:
+    """Reference element matrices: K (6 combos, 21 coefs, 80, 80), M (3 inertias, 80, 80).
+
+    The unit stiffness of coefficient i of an element (hx, hy) is
+    sum_pq s_pq(hx, hy) K[pq, i]; its unit mass is s_00 M.
+    """
     XI, ETA = np.meshgrid(_G4, _G4, indexing="ij")
     xi, eta = XI.ravel(), ETA.ravel()
-    w = np.outer(_W4, _W4).ravel() * dx * dy / 4.0
+    w = np.outer(_W4, _W4).ravel()
     npt = len(xi)
-    N, Nx, Ny = _shape_2d(xi, eta, dx, dy)
+    N, Nxi, Neta = _shape_2d(xi, eta)
 
     def field(k: int, vals: np.ndarray) -> np.ndarray:
         out = np.zeros((vals.shape[0], 16, NODE_DOF))
@@ -196,32 +279,49 @@ def _unit_element_matrices(dx: float, dy: float) -> tuple[np.ndarray, np.ndarray
         return out.reshape(vals.shape[0], 80)
 
     U, V, W, BX, BY = range(5)
-    Bm = np.stack([field(U, Nx), field(V, Ny), field(U, Ny) + field(V, Nx)], axis=1)
-    Bb = np.stack([field(BX, Nx), field(BY, Ny), field(BX, Ny) + field(BY, Nx)], axis=1)
+    Z = np.zeros((npt, 80))
+    # strain operators split by derivative direction: B = B_0 + f_x B_x + f_y B_y
+    Bm = {"x": np.stack([field(U, Nxi), Z, field(V, Nxi)], 1),
+          "y": np.stack([Z, field(V, Neta), field(U, Neta)], 1)}
+    Bb = {"x": np.stack([field(BX, Nxi), Z, field(BY, Nxi)], 1),
+          "y": np.stack([Z, field(BY, Neta), field(BX, Neta)], 1)}
 
     # assumed transverse shear strains (tying points, see module docstring)
     lx, _ = _lagrange(_G3, _G4)  # (4 integration pts, 3 tying pts)
     TX, TY = np.meshgrid(_G3, _G4, indexing="ij")  # xz: 3 along x, 4 along y
-    Nt, Ntx, _ = _shape_2d(TX.ravel(), TY.ravel(), dx, dy)
-    gxz_t = (field(BX, Nt) + field(W, Ntx)).reshape(3, 4, 80)
-    gxz = np.einsum("ak,kbd->abd", lx, gxz_t).reshape(npt, 80)
+    Nt, Ntx, _ = _shape_2d(TX.ravel(), TY.ravel())
+    to_int_x = lambda f: np.einsum("ak,kbd->abd", lx, f.reshape(3, 4, 80)).reshape(npt, 80)
+    gxz0, gxzx = to_int_x(field(BX, Nt)), to_int_x(field(W, Ntx))
     TX, TY = np.meshgrid(_G4, _G3, indexing="ij")  # yz: 4 along x, 3 along y
-    Nt, _, Nty = _shape_2d(TX.ravel(), TY.ravel(), dx, dy)
-    gyz_t = (field(BY, Nt) + field(W, Nty)).reshape(4, 3, 80)
-    gyz = np.einsum("bk,akd->abd", lx, gyz_t).reshape(npt, 80)
-    Bs = np.stack([gxz, gyz], axis=1)
+    Nt, _, Nty = _shape_2d(TX.ravel(), TY.ravel())
+    to_int_y = lambda f: np.einsum("bk,akd->abd", lx, f.reshape(4, 3, 80)).reshape(npt, 80)
+    gyz0, gyzy = to_int_y(field(BY, Nt)), to_int_y(field(W, Nty))
+    Bs = {"0": np.stack([gxz0, gyz0], 1), "x": np.stack([gxzx, Z], 1), "y": np.stack([Z, gyzy], 1)}
 
-    Ke = np.zeros((21, 80, 80))
-    for c, (i, j) in enumerate(_SYM3):
-        mm = np.einsum("p,pa,pb->ab", w, Bm[:, i], Bm[:, j])
-        bb = np.einsum("p,pa,pb->ab", w, Bb[:, i], Bb[:, j])
-        mb = np.einsum("p,pa,pb->ab", w, Bm[:, i], Bb[:, j])
+    def form(Bp, Bq, i, j):
+        return np.einsum("p,pa,pb->ab", w, Bp[:, i], Bq[:, j])
+
+    def unit(Bl, Br, p, q, i, j):
+        """sum over the symmetric pair of unit-matrix entries and of (p, q)/(q, p)."""
+        out = form(Bl[p], Br[q], i, j)
         if i != j:
-            mm, bb, mb = mm + mm.T, bb + bb.T, mb + np.einsum("p,pa,pb->ab", w, Bm[:, j], Bb[:, i])
-        Ke[c], Ke[12 + c], Ke[6 + c] = mm, bb, mb + mb.T
-    for c, (i, j) in enumerate(_SYM2):
-        ss = np.einsum("p,pa,pb->ab", w, Bs[:, i], Bs[:, j])
-        Ke[18 + c] = ss + ss.T if i != j else ss
+            out = out + form(Bl[p], Br[q], j, i)
+        if p != q:
+            out = out + form(Bl[q], Br[p], i, j) + (form(Bl[q], Br[p], j, i) if i != j else 0.0)
+        return out
+
+    K = np.zeros((6, 21, 80, 80))
+    for ci, combo in enumerate(_COMBOS):
+        p, q = combo
+        for c, (i, j) in enumerate(_SYM3):
+            if "0" not in combo:
+                K[ci, c] = unit(Bm, Bm, p, q, i, j)
+                K[ci, 12 + c] = unit(Bb, Bb, p, q, i, j)
+                mb = unit(Bm, Bb, p, q, i, j)
+                K[ci, 6 + c] = mb + mb.T
+        for c, (i, j) in enumerate(_SYM2):
+            if p in Bs and q in Bs:
+                K[ci, 18 + c] = unit(Bs, Bs, p, q, i, j)
 
     NN = np.einsum("p,pa,pb->ab", w, N, N)
     Me = np.zeros((3, 16, NODE_DOF, 16, NODE_DOF))
@@ -232,7 +332,7 @@ def _unit_element_matrices(dx: float, dy: float) -> tuple[np.ndarray, np.ndarray
         Me[1, :, b, :, a] = NN
     for k in (BX, BY):
         Me[2, :, k, :, k] = NN
-    return Ke, Me.reshape(3, 80, 80)
+    return K, Me.reshape(3, 80, 80)
 
 
 # ------------------------------------------------- material linearity --
@@ -346,17 +446,29 @@ class Modes:
 
 @dataclass(frozen=True)
 class _Pattern:
-    """Fixed CSR sparsity pattern of the global matrices and the element scatter."""
+    """Fixed CSR sparsity pattern of the global matrices and the element scatter.
+
+    Elements of equal size share one "type"; data = scatter @ Ke_types.ravel()
+    with Ke_types (n_types, 6400).
+    """
 
     indptr: np.ndarray
     indices: np.ndarray
-    scatter: sp.csr_matrix  # (nnz, 6400): data = scatter @ Ke.ravel()
-    elem_pos: np.ndarray    # (n_elements, 6400) position in data of each element entry
+    scatter: sp.csr_matrix      # (nnz, n_types * 6400)
+    elem_pos: np.ndarray        # (n_elements, 6400) position in data of each element entry
+    elem_type: np.ndarray       # (n_elements,) type index
+    type_scales: np.ndarray     # (n_types, 6) s_pq of each type
+    m_mask: np.ndarray          # (nnz,) bool: positions the mass matrix can fill
+    m_indptr: np.ndarray        # CSR of the mass sub-pattern
 
     @classmethod
     def build(cls, mesh: Mesh) -> "_Pattern":
         dofs = mesh.element_dofs
         ne = dofs.shape[0]
+        h = mesh.element_sizes
+        hq = np.round(h / max(mesh.length, mesh.width), 12)
+        _, first, etype = np.unique(hq, axis=0, return_index=True, return_inverse=True)
+        etype = etype.ravel()
         rows = np.repeat(dofs, 80, axis=1).ravel()
         cols = np.tile(dofs, (1, 80)).ravel()
         key = rows.astype(np.int64) * mesh.n_dof + cols
@@ -364,20 +476,32 @@ class _Pattern:
         n = mesh.n_dof
         r, c = np.divmod(ukey, n)
         indptr = np.searchsorted(r, np.arange(n + 1)).astype(np.int32)
-        scatter = sp.csr_matrix((np.ones(inv.size), (inv, np.tile(np.arange(6400), ne))),
-                                shape=(ukey.size, 6400))
-        return cls(indptr, c.astype(np.int32), scatter, inv.reshape(ne, 6400))
+        local = (etype[:, None] * 6400 + np.arange(6400)).ravel()
+        scatter = sp.csr_matrix((np.ones(inv.size), (inv, local)),
+                                shape=(ukey.size, len(first) * 6400))
+        fr, fc = r % NODE_DOF, c % NODE_DOF
+        pair = np.minimum(fr, fc) * 10 + np.maximum(fr, fc)
+        m_mask = (fr == fc) | (pair == 3) | (pair == 14)  # same field, u-bx, v-by
+        m_indptr = np.concatenate([[0], np.cumsum(np.add.reduceat(m_mask, indptr[:-1]))])
+        return cls(indptr, c.astype(np.int32), scatter, inv.reshape(ne, 6400), etype,
+                   _combo_scales(h[first]), m_mask, m_indptr.astype(np.int32))
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         n = len(self.indptr) - 1
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
+
+    def mass_matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        """M from full-pattern data, keeping only its structural non-zeros (~1/5)."""
+        n = len(self.indptr) - 1
+        return sp.csr_matrix((data[self.m_mask], self.indices[self.m_mask], self.m_indptr),
+                             shape=(n, n))
 
 
 def _point_matrix(mesh: Mesh, pat: _Pattern, x: float, y: float,
                   diag: Sequence[float]) -> np.ndarray:
     """Data vector of sum_k diag[k] N_k' N_k for the 5 DOF fields at one point."""
     e, xi, eta = mesh.locate([[x, y]])
-    N, _, _ = _shape_2d(xi, eta, mesh.dx, mesh.dy)
+    N, _, _ = _shape_2d(xi, eta)
     NN = np.outer(N[0], N[0])
     Me = np.zeros((16, NODE_DOF, 16, NODE_DOF))
     for k, v in enumerate(diag):
@@ -395,8 +519,8 @@ class PlateModel:
                  *, _parts=None, k_add=None, m_add=None):
         self.laminate, self.mesh, self.shear_factor = laminate, mesh, shear_factor
         if _parts is None:
-            Ke, Me = _unit_element_matrices(mesh.dx, mesh.dy)
-            _parts = (Ke, Me, _Pattern.build(mesh), _material_maps(laminate, shear_factor))
+            Kref, Mref = _reference_matrices()
+            _parts = (Kref, Mref, _Pattern.build(mesh), _material_maps(laminate, shear_factor))
         self._Ke, self._Me, self._pat, self._maps = _parts
         nnz = self._pat.indices.size
         self._k_add = np.zeros(nnz) if k_add is None else k_add
@@ -407,9 +531,13 @@ class PlateModel:
     @classmethod
     def build(cls, laminate: Laminate, length: float, width: float, mesh=None,
               shear_factor: float = 5.0 / 6.0) -> "PlateModel":
-        """Precompute the parts. ``mesh``: None (default), (nx, ny) or a Mesh."""
+        """Precompute the parts.
+
+        ``mesh``: None (``Mesh.default``, graded at the edges), (nx, ny) for a
+        uniform nx x ny mesh, or a Mesh.
+        """
         if mesh is None:
-            m = Mesh.default(length, width)
+            m = Mesh.default(length, width, laminate.thickness)
         elif isinstance(mesh, Mesh):
             m = mesh
         else:
@@ -483,11 +611,19 @@ class PlateModel:
         return c, inert
 
     def matrices(self, params=None, material=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
-        """Global K (N/m) and M (kg), CSR, sharing one sparsity pattern."""
+        """Global K (N/m) and M (kg), CSR (M on its own, sparser pattern)."""
+        kd, md = self._data(params, material)
+        return self._pat.matrix(kd), self._pat.mass_matrix(md)
+
+    def _data(self, params, material) -> tuple[np.ndarray, np.ndarray]:
+        """K and M data vectors on the common pattern."""
         c, inert = self.coefficients(params, material)
-        kd = self._pat.scatter @ np.tensordot(c, self._Ke, 1).ravel() + self._k_add
-        md = self._pat.scatter @ np.tensordot(inert, self._Me, 1).ravel() + self._m_add
-        return self._pat.matrix(kd), self._pat.matrix(md)
+        pat = self._pat
+        Kc = np.tensordot(c, self._Ke, axes=(0, 1)).reshape(6, 6400)   # per combo
+        kd = pat.scatter @ (pat.type_scales @ Kc).ravel() + self._k_add
+        Mc = np.tensordot(inert, self._Me, 1).ravel()
+        md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
+        return kd, md
 
     # -- rigid body modes --------------------------------------------------
     def rigid_body_vectors(self) -> np.ndarray:
@@ -508,13 +644,15 @@ class PlateModel:
         if int(n_modes) < 1:
             raise FEError(f"n_modes = {n_modes!r}: expected a positive integer")
         n_modes = int(n_modes)
-        K, M = self.matrices(params, material)
+        kd, md = self._data(params, material)
+        K, M = self._pat.matrix(kd), self._pat.mass_matrix(md)
         k = n_modes + 6 + _SPARE  # spare modes: ARPACK may miss one of a degenerate pair at the end
         if k >= self.mesh.n_dof - 1:
             raise FEError(f"n_modes = {n_modes}: mesh has only {self.mesh.n_dof} DOF")
         if sigma is None:
             sigma = -1e-3 * self._omega2_scale(params, material)
-        A = sp.csc_matrix((K.data - sigma * M.data, K.indices, K.indptr), shape=K.shape)
+        # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
+        A = sp.csc_matrix((kd - sigma * md, K.indices, K.indptr), shape=K.shape)
         lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
         op = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
@@ -557,7 +695,7 @@ class PlateModel:
     def interpolation(self, points: np.ndarray, component: int = 2) -> sp.csr_matrix:
         """(n_points, n_dof) sparse map from DOFs to one field (2 = w0) at (x, y) points."""
         e, xi, eta = self.mesh.locate(points)
-        N, _, _ = _shape_2d(xi, eta, self.mesh.dx, self.mesh.dy)
+        N, _, _ = _shape_2d(xi, eta)
         cols = NODE_DOF * self.mesh.connectivity[e] + component
         rows = np.repeat(np.arange(len(e)), 16)
         return sp.csr_matrix((N.ravel(), (rows, cols.ravel())), shape=(len(e), self.mesh.n_dof))
@@ -583,10 +721,19 @@ class PlateModel:
         L, R = self._maps[name]
         dc = L @ dq[:6]                                 # (21, P)
         dI = np.outer(R, dq[6])                         # (3, P)
+        pat = self._pat
         phi = modes.shapes[self.mesh.element_dofs]      # (ne, 80, m)
-        S = np.einsum("eam,ebm->mab", phi, phi, optimize=True)
-        eK = np.einsum("mab,iab->mi", S, self._Ke, optimize=True)   # (m, 21)
-        eM = np.einsum("mab,iab->mi", S, self._Me, optimize=True)   # (m, 3)
+        nt = pat.type_scales.shape[0]
+        if nt == 1:
+            S = np.einsum("eam,ebm->mab", phi, phi, optimize=True)[None]
+        else:
+            S = np.zeros((nt, phi.shape[2], 80, 80))
+            for t in range(nt):
+                ph = phi[pat.elem_type == t]
+                S[t] = np.einsum("eam,ebm->mab", ph, ph, optimize=True)
+        Sc = np.tensordot(pat.type_scales, S, axes=(0, 0))            # (6, m, 80, 80)
+        eK = np.einsum("pmab,piab->mi", Sc, self._Ke, optimize=True)  # (m, 21)
+        eM = np.einsum("mab,iab->mi", Sc[0], self._Me, optimize=True) # (m, 3)
         return eK @ dc - modes.omega2[:, None] * (eM @ dI)
 
 
