@@ -336,6 +336,8 @@ class NiDaqDevice:
             return DriverMissing(f"{who}: the installed NI-DAQmx is too old for {doing} "
                                  f"({_first_line(exc)}); update NI-DAQmx or {MOCK_HINT}")
         code = getattr(exc, "error_code", None)
+        if code == _TIMEOUT and timeout_s is None:
+            return DaqmxError(f"{who}: DAQmx timed out while {doing} (DAQmx {code})", code)
         if code == _TIMEOUT:
             trig = self._trigger
             what = (f"no trigger on {trig.channel!r} ({trig.slope} through {trig.level_v:g} V)"

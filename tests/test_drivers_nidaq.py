@@ -346,6 +346,7 @@ def test_timeout_is_no_trigger_and_task_stopped(rig):
     (-200332, DeviceConfigError, "sample rate"),
     (-200077, DeviceConfigError, "value rejected"),
     (-209999, DaqmxError, "-209999"),
+    (-200474, DaqmxError, "timed out while starting"),   # a timeout outside read()
 ])
 def test_daqmx_errors_one_line(rig, code, cls, words):
     rig.fail["start"] = E.DaqError("Some DAQmx text.\nProperty: X\nChannel: Y", code, "t")
