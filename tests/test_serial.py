@@ -92,13 +92,13 @@ def test_late_reply_is_not_taken_for_the_next_query(probe_sim):
     """A reply to TEMP? arriving while HUM? waits is recognised and skipped.
 
     Time line (T = 0.4 s timeout): TEMP? try 1 at 0, its reply is sent at
-    1.25 T; try 2 at ~T is answered at once; HUM? at ~T is answered at ~1.75 T,
-    so the stale 'TEMP 23.41' reaches the driver first, inside HUM?'s window.
+    0.55 s; try 2 at ~0.4 s is answered at once; HUM? at ~0.41 s is answered at
+    ~0.76 s, so the stale 'TEMP 23.41' reaches the driver first, inside HUM?'s window.
     """
     sim, srv = probe_sim
     with EnvironmentProbe(srv.port, timeout_s=0.4, tries=3, retry_delay_s=0.0) as p:
-        sim.inject("late", command="TEMP?", delay_s=0.5)
-        sim.inject("late", command="HUM?", delay_s=0.3)
+        sim.inject("late", command="TEMP?", delay_s=0.55)
+        sim.inject("late", command="HUM?", delay_s=0.35)
         assert p.temperature() == 23.41
         assert p.humidity() == 45.2
         assert sim.received == ["TEMP?", "TEMP?", "HUM?"]   # HUM? answered on the first try
