@@ -1,0 +1,432 @@
+"""Low-frequency modal analysis of hammer tests: spectra, peak picking, damping.
+
+Paper section 2 (Fig. 2): the plate rings after a hammer tap; the resonance
+peaks of the spectra of several accelerometers are the natural frequencies.
+
+Pipeline
+--------
+1. ``spectra(responses, fs, force=...)``: per-hit DFTs of every channel, the
+   H1 FRF averaged over hits when the force is recorded, otherwise averaged
+   auto-spectra (the paper's case). Optional force window (on the force
+   channel) and exponential window (on every channel); the exponential
+   window's added decay 1/tau is remembered and removed from the damping.
+2. ``indicator(spec)``: one curve for all channels at once (sum of spectra
+   each normalised by its median level, or a complex mode indicator
+   function); a mode whose nodal line lies under one sensor still shows
+   through the others.
+3. ``pick_peaks(spec)``: peaks of the indicator, then a local fit of every
+   peak (clusters of close peaks fitted together) with the exact DFT model of
+   truncated, sampled, exponentially decaying sinusoids,
+
+       X_j(w_k) = sum_q C_jq / (1 - z_q e^{-i w_k / fs}) + smooth_j(w_k),
+       z_q = exp(p_q / fs),  p_q = -sigma_q + i w_dq,
+
+   with common poles ``p_q`` for all channels (and hits) and a complex
+   low-order polynomial ``smooth_j`` for the conjugate poles, the
+   neighbouring modes and the force spectrum. The fit is a variable
+   projection least-squares problem over (f, ln sigma) of each pole; it is
+   exact (up to noise) even when the record is truncated before the ringing
+   has died out, so the frequency is obtained to a small fraction of a bin.
+4. ``add_peak`` / ``remove_peak``: pure functions for manual editing.
+
+Frequencies are undamped natural frequencies f_n = |p| / 2 pi in Hz; damping
+is the viscous ratio zeta = sigma / |p|. Units SI throughout.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Literal, Sequence
+
+import numpy as np
+from scipy import optimize, signal
+
+__all__ = [
+    "ModalError", "Spectra", "Peak", "exponential_window", "force_window",
+    "spectra", "indicator", "pick_peaks", "fit_peaks", "add_peak", "remove_peak",
+]
+
+
+class ModalError(ValueError):
+    """Inconsistent input to the modal analysis (shapes, rates, bands)."""
+
+
+@dataclass(frozen=True)
+class Spectra:
+    """Spectra of a set of hammer hits.
+
+    frequencies_hz: (nf,) one-sided DFT bins, df = fs / n_samples.
+    kind: 'frf' (H1, force recorded) or 'auto' (auto-spectra only).
+    magnitude: (n_channels, nf) |H1| (unit/N) or averaged one-sided energy
+        spectral density 2|X|^2 (unit^2 s / Hz).
+    frf: (n_channels, nf) complex H1, or None.
+    coherence: (n_channels, nf) ordinary coherence, or None (single hit or no force).
+    dft: (n_hits, n_channels, nf) complex windowed per-hit DFTs (unit s).
+    fs_hz, n_samples: sampling of the records.
+    exp_tau_s: time constant of the exponential window (None if not used).
+    channels: channel names.
+    onset: sample index where the hits start (the trigger, i.e. the pretrigger length).
+    """
+
+    frequencies_hz: np.ndarray
+    kind: Literal["frf", "auto"]
+    magnitude: np.ndarray
+    frf: np.ndarray | None
+    coherence: np.ndarray | None
+    dft: np.ndarray
+    fs_hz: float
+    n_samples: int
+    exp_tau_s: float | None
+    channels: tuple[str, ...]
+    onset: int = 0
+
+    @property
+    def df(self) -> float:
+        """Bin spacing, Hz."""
+        return self.fs_hz / self.n_samples
+
+    @property
+    def n_hits(self) -> int:
+        return int(self.dft.shape[0])
+
+    def fit_data(self) -> np.ndarray:
+        """(n_outputs, nf) complex data sharing the poles: H1 per channel, or every
+        hit x channel DFT with its time origin moved to the onset."""
+        if self.frf is not None:
+            return self.frf
+        shift = np.exp(2j * np.pi * self.frequencies_hz * self.onset / self.fs_hz)
+        return self.dft.reshape(-1, self.dft.shape[-1]) * shift
+
+
+@dataclass(frozen=True)
+class Peak:
+    """One resonance.
+
+    frequency_hz: undamped natural frequency |p|/(2 pi), Hz.
+    damping_ratio: viscous damping ratio (exponential window removed).
+    sigma_hz: standard uncertainty of the frequency from the fit covariance, Hz.
+    snr_db: peak height of the fitted mode over the fit residual (best channel), dB.
+    confidence: 0..1, from snr_db (0 at <= 6 dB, 1 at >= 26 dB), halved for
+        implausible damping (<= 0 or > 0.2) or manual peaks that did not fit.
+    shape: real operating shape at the channels (max |.| = 1), or empty.
+    manual: True if added by hand.
+    """
+
+    frequency_hz: float
+    damping_ratio: float
+    sigma_hz: float
+    snr_db: float
+    confidence: float
+    shape: tuple[float, ...] = ()
+    manual: bool = False
+
+
+# --------------------------------------------------------------------------- windows
+def exponential_window(n: int, fs_hz: float, tau_s: float) -> np.ndarray:
+    """w[k] = exp(-k / (tau fs)); adds exactly 1/tau (1/s) to every decay rate."""
+    if not tau_s > 0:
+        raise ModalError(f"exponential window time constant must be > 0 s, got {tau_s!r}")
+    return np.exp(-np.arange(n) / (tau_s * fs_hz))
+
+
+def force_window(n: int, fs_hz: float, start: int, width_s: float, taper_s: float | None = None) -> np.ndarray:
+    """1 on [start, start + width], cosine taper of ``taper_s`` (default width/10) after, 0 elsewhere."""
+    if not width_s > 0:
+        raise ModalError(f"force window width must be > 0 s, got {width_s!r}")
+    w = np.zeros(n)
+    n1 = min(n, start + int(round(width_s * fs_hz)))
+    w[max(start, 0):n1] = 1.0
+    nt = max(1, int(round((taper_s if taper_s is not None else width_s / 10) * fs_hz)))
+    k = np.arange(nt)
+    seg = 0.5 * (1 + np.cos(np.pi * (k + 1) / (nt + 1)))
+    m = min(nt, n - n1)
+    if m > 0:
+        w[n1:n1 + m] = seg[:m]
+    return w
+
+
+# --------------------------------------------------------------------------- spectra
+def spectra(responses: np.ndarray, fs_hz: float, force: np.ndarray | None = None, *,
+            exp_tau_s: float | None = None, force_window_s: float | None = None,
+            pretrigger: int = 0, channels: Sequence[str] | None = None) -> Spectra:
+    """Spectra of hammer hits.
+
+    responses: (n_hits, n_channels, n_samples) or (n_channels, n_samples), physical units.
+    force: (n_hits, n_samples) or (n_samples,) hammer force in N, or None (auto-spectra).
+    exp_tau_s: exponential window time constant (applied to every channel, force too).
+    force_window_s: keep the force only for this long after the trigger (``pretrigger``).
+    """
+    x = np.asarray(responses, dtype=float)
+    if x.ndim == 2:
+        x = x[None]
+    if x.ndim != 3 or x.shape[-1] < 8:
+        raise ModalError(f"responses must be (n_hits, n_channels, n_samples), got shape {np.shape(responses)}")
+    if not fs_hz > 0:
+        raise ModalError(f"sample rate must be > 0 Hz, got {fs_hz!r}")
+    nh, nc, n = x.shape
+    names = tuple(channels) if channels is not None else tuple(f"ch{i}" for i in range(nc))
+    if len(names) != nc:
+        raise ModalError(f"{len(names)} channel names for {nc} channels")
+    w = exponential_window(n, fs_hz, exp_tau_s) if exp_tau_s is not None else np.ones(n)
+    X = np.fft.rfft(x * w, axis=-1) / fs_hz
+    f = np.fft.rfftfreq(n, 1.0 / fs_hz)
+    if force is None:
+        mag = (2.0 * np.abs(X) ** 2).mean(axis=0)
+        return Spectra(f, "auto", mag, None, None, X, float(fs_hz), n, exp_tau_s, names, int(pretrigger))
+    F = np.asarray(force, dtype=float)
+    if F.ndim == 1:
+        F = F[None]
+    if F.shape != (nh, n):
+        raise ModalError(f"force must be (n_hits, n_samples) = {(nh, n)}, got {F.shape}")
+    if force_window_s is not None:
+        F = F * force_window(n, fs_hz, pretrigger, force_window_s)
+    Ff = np.fft.rfft(F * w, axis=-1) / fs_hz
+    Sff = (np.abs(Ff) ** 2).sum(axis=0)
+    Sfx = (np.conj(Ff)[:, None, :] * X).sum(axis=0)
+    Sxx = (np.abs(X) ** 2).sum(axis=0)
+    tiny = np.finfo(float).tiny
+    H1 = Sfx / np.maximum(Sff, tiny)
+    coh = np.abs(Sfx) ** 2 / np.maximum(Sff * Sxx, tiny) if nh > 1 else None
+    return Spectra(f, "frf", np.abs(H1), H1, coh, X, float(fs_hz), n, exp_tau_s, names, int(pretrigger))
+
+
+def indicator(spec: Spectra, method: Literal["sum", "cmif"] = "sum") -> np.ndarray:
+    """One peak-picking curve for all channels (power-like, dimensionless).
+
+    'sum': sum over channels of |spectrum|^2 each divided by its median
+    (power for the FRF, energy density for auto-spectra).
+    'cmif': largest singular value squared of the channel-normalised complex
+    data matrix (channels x hits for auto-spectra, channels x 1 for H1).
+    """
+    if method == "sum":
+        p = spec.magnitude ** 2 if spec.kind == "frf" else spec.magnitude
+        med = np.median(p[:, 1:], axis=1, keepdims=True)
+        return (p / np.maximum(med, np.finfo(float).tiny)).sum(axis=0)
+    if method == "cmif":
+        A = spec.frf[None] if spec.frf is not None else spec.dft  # (m, nc, nf)
+        norm = np.sqrt(np.median((np.abs(A) ** 2).mean(axis=0)[:, 1:], axis=1))
+        A = A / np.maximum(norm, np.finfo(float).tiny)[None, :, None]
+        s = np.linalg.svd(np.transpose(A, (2, 1, 0)), compute_uv=False)  # (nf, min(nc, m))
+        return s[:, 0] ** 2
+    raise ModalError(f"indicator method must be 'sum' or 'cmif', got {method!r}")
+
+
+# --------------------------------------------------------------------------- fitting
+def _halfwidth_bins(ind: np.ndarray, k: int) -> float:
+    """Half of the -3 dB width of the indicator peak at bin k, in bins (>= 0.5)."""
+    half = ind[k] / 2.0
+    lo = k
+    while lo > 0 and ind[lo - 1] > half and ind[lo - 1] <= ind[lo] * 1.0001:
+        lo -= 1
+    hi = k
+    while hi < len(ind) - 1 and ind[hi + 1] > half and ind[hi + 1] <= ind[hi] * 1.0001:
+        hi += 1
+    return max(0.5, (hi - lo) / 2.0)
+
+
+def _parabolic(y: np.ndarray, k: int) -> float:
+    """Sub-bin offset of the vertex of a parabola through y[k-1:k+2]."""
+    if k <= 0 or k >= len(y) - 1:
+        return 0.0
+    a, b, c = y[k - 1], y[k], y[k + 1]
+    den = a - 2 * b + c
+    return 0.0 if den >= 0 else float(np.clip(0.5 * (a - c) / den, -0.5, 0.5))
+
+
+def _fit_cluster(spec: Spectra, data: np.ndarray, f0: np.ndarray, s0: np.ndarray,
+                 band: tuple[int, int], poly_deg: int):
+    """Variable-projection fit of len(f0) poles to data[:, band]. Returns (f_d, sigma, cov, C, resid_rms, basis_fn)."""
+    fs = spec.fs_hz
+    k0, k1 = band
+    fk = spec.frequencies_hz[k0:k1]
+    Y = data[:, k0:k1].T  # (nk, n_out)
+    zeta = np.exp(-2j * np.pi * fk / fs)
+    # a response starting at the onset n0, truncated at N (exact at the bins, time
+    # origin moved to n0): sum_{n0..N-1} z^(n-n0) e^{-iw(n-n0)} = (1 - z^(N-n0) e^{iw n0}) / (1 - z e^{-iw})
+    back = np.exp(2j * np.pi * fk * spec.onset / fs)
+    m_after = spec.n_samples - spec.onset
+    u = (fk - fk.mean()) / max(np.ptp(fk) / 2, spec.df)
+    V = np.vander(u, poly_deg + 1, increasing=True).astype(complex)
+    K = len(f0)
+    scale = np.abs(Y).max() or 1.0
+    Yn = Y / scale
+
+    def basis(x):
+        fq, sq = x[:K], np.exp(x[K:])
+        z = np.exp((-sq + 2j * np.pi * fq) / fs)
+        P = (1.0 - z[:, None] ** m_after * back[None, :]) / (1.0 - z[:, None] * zeta[None, :])
+        Bp = P.T  # (nk, K); the conjugate poles are smooth here: left to the polynomial
+        return np.concatenate([Bp, V], axis=1), Bp
+
+    def resid(x):
+        B, _ = basis(x)
+        cn = np.abs(B).max(axis=0)
+        C = np.linalg.lstsq(B / cn, Yn, rcond=None)[0]
+        R = Yn - (B / cn) @ C
+        return np.concatenate([R.real.ravel(), R.imag.ravel()])
+
+    x0 = np.concatenate([f0, np.log(s0)])
+    lo = np.concatenate([fk[0] * np.ones(K), np.full(K, np.log(1e-6))])
+    hi = np.concatenate([fk[-1] * np.ones(K), np.full(K, np.log(2 * np.pi * np.ptp(fk) + 1e-3))])
+    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    res = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate(
+        [np.full(K, spec.df * 0.1), np.ones(K)]), xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
+    B, Bp = basis(res.x)
+    n_out = Y.shape[1]
+    cn = np.abs(B).max(axis=0)
+    C = np.linalg.lstsq(B / cn, Y, rcond=None)[0] / cn[:, None]  # (K + deg + 1, n_out)
+    rss = float(np.sum(np.abs(Y - B @ C) ** 2))
+    # residual degrees of freedom (real): data minus the linear and nonlinear parameters
+    dof = max(2 * Y.size - 2 * B.shape[1] * n_out - res.x.size, 1)
+    s2 = rss / dof  # noise variance of one real part of one bin of one output
+    J = res.jac * scale
+    try:
+        cov = s2 * np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        cov = np.full((res.x.size, res.x.size), np.nan)
+    # SNR of each pole: the energy it explains per output, over the noise energy of one bin
+    snr = np.zeros(K)
+    for q in range(K):
+        Bq = np.delete(B, q, axis=1) / np.delete(cn, q)
+        rq = Y - Bq @ np.linalg.lstsq(Bq, Y, rcond=None)[0]
+        snr[q] = 10 * np.log10(max(np.sum(np.abs(rq) ** 2) - rss, 1e-300) / n_out / (2 * s2))
+    at_bound = (np.isclose(res.x, lo, rtol=0, atol=1e-6) | np.isclose(res.x, hi, rtol=0, atol=1e-6))
+    at_bound = at_bound[:K] | at_bound[K:]
+    return res.x[:K], np.exp(res.x[K:]), cov, C[:K], snr, at_bound
+
+
+def _real_shape(C: np.ndarray, spec: Spectra) -> tuple[float, ...]:
+    """Real operating shape over channels from the complex residues of one pole."""
+    nc = len(spec.channels)
+    if spec.frf is not None:
+        v = C
+    else:
+        M = C.reshape(spec.n_hits, nc)
+        v = np.linalg.svd(M, full_matrices=False)[2][0].conj()
+    theta = -0.5 * np.angle(np.sum(v ** 2))
+    r = np.real(v * np.exp(1j * theta))
+    i = int(np.argmax(np.abs(r)))
+    if r[i] == 0:
+        return tuple(0.0 for _ in r)
+    return tuple(float(a) for a in r / r[i])
+
+
+def _confidence(snr_db: float, zeta: float) -> float:
+    c = float(np.clip((snr_db - 6.0) / 20.0, 0.0, 1.0))
+    if not 0 < zeta < 0.2:
+        c *= 0.5
+    return c
+
+
+def fit_peaks(spec: Spectra, f_init: Sequence[float], *, poly_deg: int = 2,
+              min_halfband_bins: int = 6, halfband_widths: float = 5.0,
+              method: Literal["sum", "cmif"] = "sum", manual: bool = False) -> tuple[Peak, ...]:
+    """Fit one pole near each frequency of ``f_init`` (Hz); close ones are fitted together.
+
+    Each fit uses the bins within max(min_halfband_bins, halfband_widths x the
+    -3 dB half width) of the peak. Returns peaks sorted by frequency.
+    """
+    if len(f_init) == 0:
+        return ()
+    f = spec.frequencies_hz
+    df = spec.df
+    ind = indicator(spec, method)
+    data = spec.fit_data()
+    ks = np.clip(np.round(np.asarray(f_init, float) / df).astype(int), 1, len(f) - 2)
+    # snap to the local maximum within +-2 bins
+    ks = np.array([max(k - 2, 1) + int(np.argmax(ind[max(k - 2, 1):min(k + 3, len(f) - 1)])) for k in ks])
+    order = np.argsort(ks)
+    ks = ks[order]
+    logi = np.log(np.maximum(ind, np.finfo(float).tiny))
+    f0 = np.array([(k + _parabolic(logi, k)) * df for k in ks])
+    hw = np.array([_halfwidth_bins(ind, k) for k in ks])
+    s0 = np.maximum(2 * np.pi * hw * df, 0.5 * np.pi * df)
+    w = np.maximum(min_halfband_bins, np.ceil(halfband_widths * hw)).astype(int)
+    # clusters: overlapping bands
+    clusters: list[list[int]] = []
+    for i in range(len(ks)):
+        if clusters and ks[i] - w[i] <= ks[clusters[-1][-1]] + w[clusters[-1][-1]]:
+            clusters[-1].append(i)
+        else:
+            clusters.append([i])
+    peaks: list[Peak] = []
+    tau = spec.exp_tau_s
+    for cl in clusters:
+        k0 = max(1, min(ks[i] - w[i] for i in cl))
+        k1 = min(len(f), max(ks[i] + w[i] for i in cl) + 1)
+        deg = poly_deg + max(0, len(cl) - 1)
+        fd, sg, cov, C, snrs, at_bound = _fit_cluster(spec, data, f0[cl], s0[cl], (k0, k1), deg)
+        K = len(cl)
+        for q in range(K):
+            sig = sg[q] - (1.0 / tau if tau is not None else 0.0)
+            wd = 2 * np.pi * fd[q]
+            wn = np.hypot(sig, wd)
+            zeta = float(sig / wn)
+            fn = float(wn / (2 * np.pi))
+            snr = float(snrs[q])
+            sf = float(np.sqrt(cov[q, q])) if np.isfinite(cov[q, q]) else float("nan")
+            conf = 0.0 if at_bound[q] else _confidence(snr, zeta)
+            peaks.append(Peak(fn, zeta, sf, snr, conf, _real_shape(C[q], spec), manual))
+    return tuple(sorted(peaks, key=lambda p: p.frequency_hz))
+
+
+def pick_peaks(spec: Spectra, *, fmin: float | None = None, fmax: float | None = None,
+               min_prominence_db: float = 3.0, min_confidence: float = 0.25,
+               method: Literal["sum", "cmif"] = "sum", max_peaks: int | None = None,
+               **fit_kw) -> tuple[Peak, ...]:
+    """Find and fit the resonances in [fmin, fmax] (Hz) across all channels at once.
+
+    Candidates are peaks of the indicator (``indicator``) with a prominence of
+    at least ``min_prominence_db`` in dB; each is then fitted (``fit_peaks``)
+    and kept if its confidence is at least ``min_confidence``.
+    """
+    f = spec.frequencies_hz
+    ind = indicator(spec, method)
+    lo = 1 if fmin is None else max(1, int(np.searchsorted(f, fmin)))
+    hi = len(f) - 1 if fmax is None else min(len(f) - 1, int(np.searchsorted(f, fmax, side="right")))
+    if hi - lo < 3:
+        raise ModalError(f"frequency band [{fmin}, {fmax}] Hz holds fewer than 3 bins")
+    db = 10 * np.log10(np.maximum(ind[lo:hi], np.finfo(float).tiny))
+    idx, props = signal.find_peaks(db, prominence=min_prominence_db)
+    if max_peaks is not None and len(idx) > max_peaks:
+        keep = np.argsort(props["prominences"])[::-1][:max_peaks]
+        idx = np.sort(idx[keep])
+    peaks = fit_peaks(spec, (idx + lo) * spec.df, method=method, **fit_kw)
+    out = [p for p in peaks if p.confidence >= min_confidence
+           and (fmin is None or p.frequency_hz >= fmin) and (fmax is None or p.frequency_hz <= fmax)]
+    # two candidates that converged on the same pole: keep the more confident one
+    dedup: list[Peak] = []
+    for p in out:
+        if dedup and abs(p.frequency_hz - dedup[-1].frequency_hz) < max(spec.df / 4, 3 * p.sigma_hz if np.isfinite(p.sigma_hz) else 0):
+            if p.confidence > dedup[-1].confidence:
+                dedup[-1] = p
+            continue
+        dedup.append(p)
+    return tuple(dedup)
+
+
+def add_peak(peaks: Sequence[Peak], spec: Spectra, f_hz: float, **fit_kw) -> tuple[Peak, ...]:
+    """Peaks with one more, fitted near ``f_hz`` (Hz) and marked manual; sorted by frequency.
+
+    A new peak that lands on an existing one (closer than a quarter bin) replaces it.
+    """
+    if not spec.frequencies_hz[1] <= f_hz <= spec.frequencies_hz[-2]:
+        raise ModalError(f"frequency {f_hz!r} Hz is outside the spectrum "
+                         f"({spec.frequencies_hz[1]:g}..{spec.frequencies_hz[-2]:g} Hz)")
+    (new,) = fit_peaks(spec, [f_hz], manual=True, **fit_kw)
+    kept = [p for p in peaks if abs(p.frequency_hz - new.frequency_hz) >= spec.df / 4]
+    return tuple(sorted([*kept, new], key=lambda p: p.frequency_hz))
+
+
+def remove_peak(peaks: Sequence[Peak], f_hz: float, tol_hz: float | None = None) -> tuple[Peak, ...]:
+    """Peaks without the one nearest ``f_hz`` (Hz); unchanged if none lies within ``tol_hz``."""
+    if not peaks:
+        return ()
+    i = int(np.argmin([abs(p.frequency_hz - f_hz) for p in peaks]))
+    if tol_hz is not None and abs(peaks[i].frequency_hz - f_hz) > tol_hz:
+        return tuple(peaks)
+    return tuple(p for j, p in enumerate(peaks) if j != i)
+
+
+def with_shape(peak: Peak, shape: Sequence[float]) -> Peak:
+    """The same peak with another shape vector."""
+    return replace(peak, shape=tuple(float(s) for s in shape))
