@@ -358,12 +358,18 @@ def test_daqmx_errors_one_line(rig, code, cls, words):
     assert "\n" not in msg and words in msg and "low" in msg
 
 
-def test_driver_missing_from_fake(rig):
-    rig.fail["Task"] = E.DaqNotFoundError("Could not find an installation of NI-DAQmx.")
+@pytest.mark.parametrize("exc, words", [
+    (E.DaqNotFoundError("Could not find an installation of NI-DAQmx."), "no NI-DAQmx driver"),
+    (E.DaqNotSupportedError("NI-DAQmx not supported on this platform."), "not supported"),
+    (E.DaqFunctionNotSupportedError("DAQmxCreateTask not found"), "too old"),
+])
+def test_driver_missing_from_fake(rig, exc, words):
+    rig.fail["Task"] = exc
     dev = NiDaqDevice("low", nidaqmx_module=rig)
     with pytest.raises(DriverMissing) as ei:
         dev.configure((ACC,), TIMING, None)
-    assert "--backend mock" in str(ei.value)
+    msg = str(ei.value)
+    assert "\n" not in msg and words in msg and "--backend mock" in msg
 
 
 def test_failure_while_configuring_closes_task(rig):
