@@ -36,10 +36,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .laminate import Laminate, Material, PhysicsError, abdh, transform_inplane, transform_shear
+from .laminate import ABDH, Laminate, Material, PhysicsError, abdh, transform_inplane, transform_shear
 
-__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "DEFAULT_ELEMENTS",
-           "FEError"]
+__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "coefficients_from_abdh",
+           "DEFAULT_ELEMENTS", "EDGE_LAYER", "COEF_NAMES", "FEError"]
 
 #: Default mesh (CFRP convergence study, bench/RESULTS.md): DEFAULT_ELEMENTS
 #: interior elements along the longer side plus an edge row of EDGE_LAYER
@@ -398,6 +398,11 @@ def _coef_vector(A, B, D, H) -> np.ndarray:
                     + [D[i, j] for i, j in _SYM3] + [H[i, j] for i, j in _SYM2])
 
 
+def coefficients_from_abdh(r: ABDH) -> tuple[np.ndarray, np.ndarray]:
+    """(21 coefficients in COEF_NAMES order, (I1, I2, I3)) of laminate resultants."""
+    return _coef_vector(r.A, r.B, r.D, r.H), np.array([r.I1, r.I2, r.I3])
+
+
 def _material_maps(lam: Laminate, shear_factor: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Per material name: (L (21, 6): coefficients per unit q; R (3,): I1, I2, I3 per unit density)."""
     z = lam.z_interfaces
@@ -525,7 +530,7 @@ class PlateModel:
         nnz = self._pat.indices.size
         self._k_add = np.zeros(nnz) if k_add is None else k_add
         self._m_add = np.zeros(nnz) if m_add is None else m_add
-        self._interp_cache: dict = {}
+        self._cache: dict = {}
 
     # -- construction ---------------------------------------------------
     @classmethod
@@ -612,12 +617,11 @@ class PlateModel:
 
     def matrices(self, params=None, material=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """Global K (N/m) and M (kg), CSR (M on its own, sparser pattern)."""
-        kd, md = self._data(params, material)
+        kd, md = self._data(*self.coefficients(params, material))
         return self._pat.matrix(kd), self._pat.mass_matrix(md)
 
-    def _data(self, params, material) -> tuple[np.ndarray, np.ndarray]:
+    def _data(self, c: np.ndarray, inert: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """K and M data vectors on the common pattern."""
-        c, inert = self.coefficients(params, material)
         pat = self._pat
         Kc = np.tensordot(c, self._Ke, axes=(0, 1)).reshape(6, 6400)   # per combo
         kd = pat.scatter @ (pat.type_scales @ Kc).ravel() + self._k_add
@@ -628,6 +632,8 @@ class PlateModel:
     # -- rigid body modes --------------------------------------------------
     def rigid_body_vectors(self) -> np.ndarray:
         """(n_dof, 6) translations x, y, z; rotation about z; rotations about x and y."""
+        if "R" in self._cache:
+            return self._cache["R"]
         xy = self.mesh.coords
         n = xy.shape[0]
         R = np.zeros((n, NODE_DOF, 6))
@@ -635,22 +641,37 @@ class PlateModel:
         R[:, 0, 3], R[:, 1, 3] = -xy[:, 1], xy[:, 0]
         R[:, 2, 4], R[:, 4, 4] = xy[:, 1], -1.0
         R[:, 2, 5], R[:, 3, 5] = xy[:, 0], -1.0
-        return R.reshape(n * NODE_DOF, 6)
+        self._cache["R"] = R.reshape(n * NODE_DOF, 6)
+        return self._cache["R"]
 
     # -- solve --------------------------------------------------------------
     def solve(self, n_modes: int = 10, params: Mapping[str, float] | None = None,
               material: str | None = None, sigma: float | None = None) -> Modes:
-        """The n_modes lowest elastic modes (rigid-body modes detected and excluded)."""
-        if int(n_modes) < 1:
+        """The n_modes lowest elastic modes (rigid-body modes detected and excluded).
+
+        ``params``: constants of ``material`` (contract names) replacing the
+        laminate's; K and M are recombined from the precomputed parts.
+        """
+        c, inert = self.coefficients(params, material)
+        modes = self.solve_coefficients(c, inert, n_modes, sigma)
+        return Modes(modes.frequencies_hz, modes.omega2, modes.shapes, modes.rigid_max_omega,
+                     dict(params or {}), material)
+
+    def solve_coefficients(self, c: np.ndarray, inertias: Sequence[float], n_modes: int = 10,
+                           sigma: float | None = None) -> Modes:
+        """Modes for explicit laminate coefficients (COEF_NAMES order, see
+        ``coefficients_from_abdh``) and inertias (I1, I2, I3)."""
+        if isinstance(n_modes, bool) or int(n_modes) != n_modes or n_modes < 1:
             raise FEError(f"n_modes = {n_modes!r}: expected a positive integer")
         n_modes = int(n_modes)
-        kd, md = self._data(params, material)
+        c, inert = np.asarray(c, dtype=float), np.asarray(inertias, dtype=float)
+        kd, md = self._data(c, inert)
         K, M = self._pat.matrix(kd), self._pat.mass_matrix(md)
         k = n_modes + 6 + _SPARE  # spare modes: ARPACK may miss one of a degenerate pair at the end
         if k >= self.mesh.n_dof - 1:
             raise FEError(f"n_modes = {n_modes}: mesh has only {self.mesh.n_dof} DOF")
         if sigma is None:
-            sigma = -1e-3 * self._omega2_scale(params, material)
+            sigma = -1e-3 * self._omega2_scale(c, inert)
         # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
         A = sp.csc_matrix((kd - sigma * md, K.indices, K.indptr), shape=K.shape)
         lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
@@ -673,12 +694,10 @@ class PlateModel:
         if lam_e.size < n_modes:
             raise FEError("eigen solver returned too few elastic modes")
         rigid_max = float(np.sqrt(np.max(np.abs(lam[rigid]))))
-        return Modes(np.sqrt(np.maximum(lam_e, 0.0)) / (2.0 * np.pi), lam_e, vec_e, rigid_max,
-                     dict(params or {}), material)
+        return Modes(np.sqrt(np.maximum(lam_e, 0.0)) / (2.0 * np.pi), lam_e, vec_e, rigid_max)
 
-    def _omega2_scale(self, params, material) -> float:
+    def _omega2_scale(self, c: np.ndarray, inert: np.ndarray) -> float:
         """Rough first elastic omega^2 (thin-plate estimate), rad^2/s^2."""
-        c, inert = self.coefficients(params, material)
         Dmax = max(c[12], c[15], c[17])
         a = max(self.mesh.length, self.mesh.width)
         return 100.0 * Dmax / (inert[0] * a**4)
