@@ -416,7 +416,6 @@ def _attenuation(lam, d: float, eta: float, direction_deg: float):
     """f (Hz) -> exp(-eta k d / 2), k = 2 pi f / c_phase(A0); None when eta = 0."""
     if eta <= 0:
         return None
-    from engine import safe
 
     def att(f: np.ndarray) -> np.ndarray:
         f = np.asarray(f, float)
@@ -429,7 +428,7 @@ def _attenuation(lam, d: float, eta: float, direction_deg: float):
 
 def _a0_phase_velocity(lam, f: np.ndarray, direction_deg: float) -> np.ndarray:
     from engine import safe
-    return np.asarray(safe.phase_velocity(lam, f, mode="A0", direction_deg=direction_deg), float)
+    return np.asarray(safe.dispersion(lam, f, direction_deg).mode("A0").phase_velocity_m_s, float)
 
 
 def _upsample(v: np.ndarray, fs: float, lead: int, nf: int, delay_s: float, att) -> np.ndarray:
