@@ -41,7 +41,7 @@ def specimen_text(spec: Specimen) -> str:
 
 
 def double_hit(force: np.ndarray, rate_hz: float, min_gap_s: float = 5e-4,
-               fraction: float = 0.3) -> bool:
+               fraction: float = 0.1) -> bool:
     """True if the force record holds two pulses above ``fraction`` of its peak,
     separated by more than ``min_gap_s`` below that level."""
     x = np.asarray(force, float)
