@@ -74,7 +74,7 @@ import numpy as np
 import scipy.linalg as sla
 from numpy.polynomial import legendre as npleg
 
-from .laminate import Laminate, rotate_z, stiffness_3d
+from .laminate import Laminate, stiffness_3d
 
 __all__ = [
     "ModeCurve", "Dispersion", "SafeModel", "SafeError",
@@ -150,6 +150,22 @@ _LX = np.zeros((6, 3)); _LX[0, 0] = 1.0; _LX[4, 2] = 1.0; _LX[5, 1] = 1.0
 _LZ = np.zeros((6, 3)); _LZ[2, 2] = 1.0; _LZ[3, 1] = 1.0; _LZ[4, 0] = 1.0
 
 
+def bond_matrix(angle_deg: float) -> np.ndarray:
+    """6x6 Bond stress matrix of a rotation by +angle about z (Voigt 11,22,33,23,13,12).
+
+    ``bond_matrix(t) @ C @ bond_matrix(t).T`` equals ``laminate.rotate_z(C, t)``.
+    """
+    t = np.deg2rad(angle_deg)
+    c, s = np.cos(t), np.sin(t)
+    a = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    p = ((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))
+    M = np.empty((6, 6))
+    for I, (i, j) in enumerate(p):
+        for J, (k, l) in enumerate(p):
+            M[I, J] = a[i, k] * a[j, l] if J < 3 else a[i, k] * a[j, l] + a[i, l] * a[j, k]
+    return M
+
+
 def ply_stiffness(laminate: Laminate, direction_deg: float) -> list[np.ndarray]:
     """3D stiffness of each ply in propagation axes (x along direction_deg), Pa."""
     cache: dict = {}
@@ -157,7 +173,8 @@ def ply_stiffness(laminate: Laminate, direction_deg: float) -> list[np.ndarray]:
     for ply in laminate.plies:
         key = (id(ply.material), ply.angle_deg)
         if key not in cache:
-            cache[key] = rotate_z(stiffness_3d(ply.material), ply.angle_deg - direction_deg)
+            B = bond_matrix(ply.angle_deg - direction_deg)
+            cache[key] = B @ stiffness_3d(ply.material) @ B.T
         out.append(cache[key])
     return out
 
@@ -167,7 +184,8 @@ def default_discretisation(laminate: Laminate, fmax_hz: float) -> tuple[int, int
 
     The through-thickness wavenumber is bounded by w/c_s,min (slowest bulk
     shear speed of any ply, times 1.2 for the Rayleigh-like A0 limit); a GLL
-    element of length h_e and order p resolves q h_e with error ~ (q h_e / 2p)^(2p).
+    element of length h_e and order p resolves q h_e with error ~ (q h_e / 2p)^(2p)
+    (calibrated on the exact Lamb roots; order >= 4, elements of q h_e <= 12).
     """
     q = 0.0
     h_ply = 0.0
@@ -177,10 +195,10 @@ def default_discretisation(laminate: Laminate, fmax_hz: float) -> tuple[int, int
         q = max(q, 1.2 * TWO_PI * max(fmax_hz, 1.0) / cs)
         h_ply = max(h_ply, ply.thickness)
     qh = q * h_ply                   # rad across the thickest ply
-    n_el = max(1, int(np.ceil(qh / 8.0)))
+    n_el = max(1, int(np.ceil(qh / 12.0)))
     qe = qh / n_el
-    p = 3
-    while p < 24 and (np.e * qe / (2.0 * p)) ** (2 * p) > 1e-12:
+    p = 4
+    while p < 24 and (qe / (2.0 * p)) ** (2 * p) > 1e-12:
         p += 1
     return p, n_el
 
@@ -220,6 +238,11 @@ class SafeModel:
         return self.K0.shape[0]
 
 
+def _kron(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    n, m = A.shape[0], B.shape[0]
+    return (A[:, None, :, None] * B[None, :, None, :]).reshape(n * m, n * m)
+
+
 def _assemble(laminate: Laminate, direction_deg: float, order: int, epp: int):
     Cs = ply_stiffness(laminate, direction_deg)
     xi, Mref, Sref, Gref = _reference_element(order)
@@ -235,10 +258,10 @@ def _assemble(laminate: Laminate, direction_deg: float, order: int, epp: int):
         Cxx = _LX.T @ C @ _LX; Czz = _LZ.T @ C @ _LZ; Czx = _LZ.T @ C @ _LX
         he = ply.thickness / epp
         J = he / 2.0
-        k0 = np.kron(Sref / J, Czz)
-        k2 = np.kron(J * Mref, Cxx)
-        k1 = np.kron(Gref, Czx) - np.kron(Gref.T, Czx.T)
-        m = np.kron(ply.material.density * J * Mref, I3)
+        k0 = _kron(Sref / J, Czz)
+        k2 = _kron(J * Mref, Cxx)
+        k1 = _kron(Gref, Czx) - _kron(Gref.T, Czx.T)
+        m = _kron(ply.material.density * J * Mref, I3)
         for s in range(epp):
             z0 = zi[ip] + s * he
             n0 = e * order
@@ -264,25 +287,28 @@ def _class_bases(z: np.ndarray, mats, tol=1e-12):
     h = z[-1] - z[0]
     comps = {"u": 0, "v": 1, "w": 2}
 
+    r2 = 1.0 / np.sqrt(2.0)
+    lo = np.arange(n // 2)
+    hi = n - 1 - lo
+    mid = n // 2 if n % 2 else None
+
     def cols(comp_names, parity=None):
         """Basis columns for components; parity: dict comp -> +1/-1 (mirror) or None."""
-        out = []
+        blocks = []
         for c in comp_names:
             ci = comps[c]
             if parity is None:
-                for i in range(n):
-                    col = np.zeros(3 * n); col[3 * i + ci] = 1.0; out.append(col)
+                Q = np.zeros((3 * n, n)); Q[3 * np.arange(n) + ci, np.arange(n)] = 1.0
             else:
                 eps = parity[c]
-                for i in range(n):
-                    j = n - 1 - i
-                    if i < j:
-                        col = np.zeros(3 * n)
-                        col[3 * i + ci] = 1.0 / np.sqrt(2.0); col[3 * j + ci] = eps / np.sqrt(2.0)
-                        out.append(col)
-                    elif i == j and eps > 0:
-                        col = np.zeros(3 * n); col[3 * i + ci] = 1.0; out.append(col)
-        return np.array(out).T
+                m = len(lo) + (1 if (mid is not None and eps > 0) else 0)
+                Q = np.zeros((3 * n, m))
+                Q[3 * lo + ci, np.arange(len(lo))] = r2
+                Q[3 * hi + ci, np.arange(len(lo))] = eps * r2
+                if m > len(lo):
+                    Q[3 * mid + ci, -1] = 1.0
+            blocks.append(Q)
+        return np.concatenate(blocks, axis=1)
 
     def uncoupled(Qa, Qb):
         return all(_coupling(X, Qa, Qb) < tol for X in mats)
@@ -386,7 +412,7 @@ class _Reduced:
     n_branches: int
 
 
-def _reduce(cls: _Class, wmax: float, n_k: int = 8, extra: int = 2,
+def _reduce(cls: _Class, wmax: float, n_k: int = 6, extra: int = 1, small_k=(),
             n_branches: int | None = None) -> _Reduced | None:
     """Reduced model of one class capturing every branch below wmax (or the first n_branches)."""
     lam0 = sla.eigh(cls.A0, eigvals_only=True, check_finite=False)
@@ -401,7 +427,7 @@ def _reduce(cls: _Class, wmax: float, n_k: int = 8, extra: int = 2,
     n_keep = min(n_cut + extra, cls.A0.shape[0])
     kmax = 1.1 * _kmax(cls, wmax, 0)
     vecs = []
-    for k in _cheb(n_k, 0.0, kmax):
+    for k in np.concatenate([_cheb(n_k, 0.0, kmax), kmax * np.array(small_k)]):
         _, v = _eig_at(cls, k, n_keep)
         vecs.append(v)
     V = np.concatenate(vecs, axis=1)
@@ -504,6 +530,136 @@ def _solve_branches(red: _Reduced, omega: np.ndarray, branches: np.ndarray, n_gr
 
 
 # ---------------------------------------------------------------------------
+# Chebyshev representation of the branches of a reduced class model
+@dataclass(frozen=True)
+class _Branches:
+    """Chebyshev series in k on [0, kmax] of lambda_j = w_j^2 and of its
+    eigenvector slope lambda_j' = y^T A'(k) y, for branches j < nb; plus any
+    extra eigenvector-derived series (``extra``: name -> (n+1, nb) coeffs)."""
+
+    kmax: float
+    lam: np.ndarray           # (n+1, nb) Chebyshev coefficients
+    dlam: np.ndarray          # (n+1, nb)
+    converged: np.ndarray     # (nb,) bool: tail below tolerance
+    extra: dict
+
+
+def _dct1_coeffs(v: np.ndarray) -> np.ndarray:
+    """Chebyshev coefficients from values at Lobatto points x_i = cos(pi i / n), axis 0."""
+    n = v.shape[0] - 1
+    from scipy.fft import dct
+    a = dct(v, type=1, axis=0) / n
+    a[0] /= 2.0
+    a[-1] /= 2.0
+    return a
+
+
+def _cheb_branches(red: _Reduced, nb: int, n0: int = 32, n_max: int = 256, tol: float = 1e-11,
+                   probes: np.ndarray | None = None) -> _Branches:
+    """Sample branches 0..nb-1 at nested Chebyshev-Lobatto points until the tail converges.
+
+    ``probes`` (m, r): rows p such that the sign-free products (p . y)(q . y)
+    for pairs listed in _PROBE_PAIRS are also interpolated (used by the transient).
+    """
+    kmax = red.kmax
+    n = n0
+    x = np.cos(np.pi * np.arange(n + 1) / n)
+    ks = kmax * (1.0 - x) / 2.0            # x = 1 -> k = 0
+    vals = _sample(red, ks, nb, probes)
+    while True:
+        lam_c = _dct1_coeffs(vals[0])
+        scale = np.max(np.abs(lam_c), axis=0)
+        tail = np.max(np.abs(lam_c[-3:]), axis=0) / scale
+        conv = tail < tol
+        if conv.all() or 2 * n > n_max:
+            break
+        # nested refinement: new points at odd indices of the 2n grid
+        x_new = np.cos(np.pi * (2 * np.arange(n) + 1) / (2 * n))
+        new = _sample(red, kmax * (1.0 - x_new) / 2.0, nb, probes)
+        merged = []
+        for old, nw in zip(vals, new):
+            m = np.empty((2 * n + 1,) + old.shape[1:])
+            m[0::2] = old
+            m[1::2] = nw
+            merged.append(m)
+        vals = merged
+        n *= 2
+    coeffs = [_dct1_coeffs(v) for v in vals]
+    extra = {}
+    if probes is not None:
+        extra = {"prod": coeffs[2]}
+    return _Branches(kmax, coeffs[0], coeffs[1], conv, extra)
+
+
+def _sample(red: _Reduced, ks: np.ndarray, nb: int, probes=None):
+    lam, vec = _batched_eig(red, ks)
+    y = vec[:, :, :nb]                                       # (K, r, nb)
+    Ay = np.einsum("ij,kjb->kib", red.a1, y) + 2 * ks[:, None, None] * np.einsum("ij,kjb->kib", red.a2, y)
+    dl = np.einsum("kib,kib->kb", y, Ay)
+    out = [lam[:, :nb], dl]
+    if probes is not None:
+        pv = np.einsum("mr,krb->kmb", probes, y)             # (K, m, nb)
+        out.append(np.einsum("kmb,knb->kmnb", pv, pv).reshape(len(ks), -1, nb))
+    return out
+
+
+def _cheb_eval(c: np.ndarray, k: np.ndarray, kmax: float) -> np.ndarray:
+    """Evaluate series c (n+1,) or (n+1, m) at k (Clenshaw)."""
+    x = 1.0 - 2.0 * k / kmax
+    return np.polynomial.chebyshev.chebval(x, c)
+
+
+def _cheb_vals(c: np.ndarray, k: np.ndarray, kmax: float, deriv: bool = False):
+    """Series c (n+1,) at k; with deriv also d/dk (trigonometric form, vectorised)."""
+    x = np.clip(1.0 - 2.0 * k / kmax, -1.0, 1.0)
+    th = np.arccos(x)
+    m = np.arange(c.shape[0])
+    T = np.cos(np.multiply.outer(th, m))
+    v = T @ c
+    if not deriv:
+        return v
+    s = np.sin(th)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dT = m * np.sin(np.multiply.outer(th, m)) / s[..., None]
+    # endpoints (sin th = 0): dT_m/dx = m^2 at x = 1, (-1)^(m+1) m^2 at x = -1
+    end = np.abs(s) < 1e-12
+    if np.any(end):
+        sgn = np.where(x[end] > 0, 1.0, -1.0)
+        dT[end] = (m ** 2) * np.where(sgn[:, None] > 0, 1.0, (-1.0) ** (m + 1))
+    return v, (dT @ c) * (-2.0 / kmax)
+
+
+def _roots_from_series(br: _Branches, omega: np.ndarray, j: int, n_dense: int = 256,
+                       n_iter: int = 12):
+    """Largest-root k of lambda_j(k) = omega^2 for each omega, with lambda_j'(k). NaN if none."""
+    kmax = br.kmax
+    c = br.lam[:, j]
+    kd = np.linspace(0.0, kmax, n_dense)
+    L, D = _cheb_vals(c, kd, kmax, deriv=True)
+    w2 = omega ** 2
+    cross = (L[None, :-1] <= w2[:, None]) & (L[None, 1:] > w2[:, None])
+    has = cross.any(axis=1) & (omega > 0)
+    n = cross.shape[1] - 1 - np.argmax(cross[:, ::-1], axis=1)
+    lo, hi = kd[n], kd[n + 1]
+    k = _hermite_root(lo, hi, L[n], L[n + 1], D[n], D[n + 1], w2, n_iter=4)
+    act = np.nonzero(has)[0]
+    for _ in range(n_iter):
+        if len(act) == 0:
+            break
+        f, d = _cheb_vals(c, k[act], kmax, deriv=True)
+        f -= w2[act]
+        kn = k[act] - f / np.where(d > 0, d, np.inf)
+        # stay in the bracket of the dense grid (the start is already close)
+        kn = np.clip(kn, lo[act], hi[act])
+        done = np.abs(kn - k[act]) <= 1e-12 * kn
+        k[act] = kn
+        act = act[~done]
+    dl = _cheb_vals(br.dlam[:, j], k, kmax)
+    k = np.where(has, k, np.nan)
+    return k, np.where(has, dl, np.nan)
+
+
+# ---------------------------------------------------------------------------
 # labels
 def _polarisation(cls: _Class, M: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """Kinetic-energy fractions (u, v, w) of a class eigenvector."""
@@ -599,16 +755,16 @@ def dispersion_from_model(model: SafeModel, frequency_hz, *, labels: tuple[str, 
         red = _reduce(model.classes[ci], wmax, n_branches=nb if labels is not None else None)
         if red is None:
             continue
-        js = np.array([r["j"] for r in rs])
-        om = np.repeat(w[None, :], len(js), axis=0).ravel()
-        br = np.repeat(js, len(w))
-        good = om > 0
-        k = np.full(om.shape, np.nan); cg = np.full(om.shape, np.nan)
-        kk, cc, _ = _solve_branches(red, om[good], br[good])
-        k[good] = kk; cg[good] = cc
-        k = k.reshape(len(js), len(w)); cg = cg.reshape(len(js), len(w))
-        for i, r in enumerate(rs):
-            results[r["label"]] = (k[i], cg[i], r["cutoff"])
+        br = _cheb_branches(red, nb)
+        for r in rs:
+            j = r["j"]
+            if br.converged[j]:
+                k, dl = _roots_from_series(br, w, j)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    cg = dl / (2.0 * w)
+            else:   # series not converged (sharp veering): one eigen-solve per frequency
+                k, cg, _ = _solve_branches(red, w, np.full(len(w), j))
+            results[r["label"]] = (k, cg, r["cutoff"])
     for r in rows:
         if r["label"] not in results:
             continue
