@@ -427,14 +427,21 @@ def _finish(prob: _Problem, theta: np.ndarray, prior_mean: np.ndarray, prior_w: 
 def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *,
              prior: Prior | float | None = 1.0, space: str = "log", max_iter: int = 50,
              xtol: float = 1e-9, max_step: float = 0.7, rel_threshold: float = 0.05,
+             dtol: float = 1e-10, mu0: float = 1e-3, continuation: bool = True,
              callback: Callable[[dict], None] | None = None) -> Estimate:
     """Combined weighted least squares (Levenberg-Marquardt) with Laplace covariance.
 
     Minimises ``sum_b |(y_b(p) - obs_b) / sigma_b|^2 + |w (theta - theta_prior)|^2``
     over ``theta`` (log-parameters by default). ``prior`` is a :class:`Prior`,
     a number (std of log p, centred on the start; default 1.0, i.e. weak) or
-    None. ``max_step`` bounds each step in theta (0.7 ~ factor 2).
-    Converged when the largest accepted step is below ``xtol``.
+    None. ``max_step`` bounds each step in theta (0.7 ~ factor 2); ``mu0`` is
+    the initial Marquardt damping (relative to diag(J^T J)).
+    Converged when the undamped Gauss-Newton step is below ``xtol`` in every
+    coordinate or would lower the chi^2 by less than ``dtol`` (then the
+    remaining error is below sqrt(dtol) standard deviations). With ``continuation`` and a prior weaker than 0.3 (or none),
+    the fit is first converged loosely with the prior firmed to 0.3, and the
+    prior is then relaxed: nearly unidentifiable directions cannot run away
+    while the well-identified ones are still far from their values.
     """
     t0 = time.perf_counter()
     p_start = _check_start(names, start)
@@ -442,6 +449,34 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
     prob = _Problem(blocks, coords)
     tp, w = _prior_arrays(prior, coords, p_start)
     theta = coords.theta(p_start)
+
+    history: list[dict] = []
+    warnings: list[str] = []
+    # continuation: with a weak (or no) prior, first converge with a firmer one
+    # so that nearly unidentifiable directions cannot run away, then relax it.
+    stages = [w]
+    if continuation and np.any(w < 1.0 / 0.3):
+        firm = np.maximum(w, 1.0 / 0.3)
+        stages = [firm, w]
+    total_it, converged, message = 0, False, ""
+    for si, ws in enumerate(stages):
+        last = si == len(stages) - 1
+        theta, converged, n_it, message = _lm(prob, theta, tp, ws, xtol if last else max(xtol, 1e-3),
+                                              dtol if last else max(dtol, 1e-2),
+                                              max_iter - total_it, max_step, mu0, history, total_it,
+                                              callback)
+        total_it += n_it
+        if total_it >= max_iter:
+            break
+    return _finish(prob, theta, tp, w, converged, total_it, history, dict(zip(names, p_start)),
+                   f"levenberg-marquardt/{space}", message, warnings, t0, rel_threshold)
+
+
+def _lm(prob: _Problem, theta: np.ndarray, tp: np.ndarray, w: np.ndarray, xtol: float, dtol: float,
+        max_iter: int, max_step: float, mu0: float, history: list[dict], it0: int,
+        callback=None) -> tuple[np.ndarray, bool, int, str]:
+    """Levenberg-Marquardt iterations on whitened residuals plus prior rows."""
+    coords = prob.coords
 
     def full_residual(th: np.ndarray) -> np.ndarray:
         return np.concatenate([prob.residual(th), w * (th - tp)])
@@ -454,25 +489,28 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
 
     r, J = full_jac(theta)
     cost = 0.5 * r @ r
-    history = [{"iteration": 0, "cost": float(cost), "params": coords.as_dict(theta), "mu": None}]
-    mu = None
-    converged, message, it = False, "maximum iterations reached", 0
-    warnings: list[str] = []
+    if not history:
+        history.append({"iteration": 0, "cost": float(cost), "params": coords.as_dict(theta)})
+    mu = mu0
     for it in range(1, max_iter + 1):
         A, g = J.T @ J, J.T @ r
-        dA = np.maximum(np.diag(A), 1e-12 * max(np.diag(A).max(), 1e-300))
-        if mu is None:
-            mu = 1e-3 * float(dA.max())
+        dmax = max(float(np.diag(A).max()), 1e-300)
+        D = np.diag(np.maximum(np.diag(A), 1e-6 * dmax))
+        try:
+            gn = -np.linalg.lstsq(A, g, rcond=1e-14)[0]   # undamped Gauss-Newton step
+        except np.linalg.LinAlgError:
+            gn = np.full_like(g, np.inf)
+        decrement = float(-g @ gn)   # expected chi^2 reduction of the full GN step
+        if np.max(np.abs(gn)) < xtol or decrement < dtol or cost == 0.0:
+            return theta, True, it - 1, "Gauss-Newton step below tolerance"
         accepted = False
-        for _ in range(30):
+        for _ in range(40):
             try:
-                step = -np.linalg.solve(A + mu * np.diag(dA), g)
+                step = -np.linalg.solve(A + mu * D, g)
             except np.linalg.LinAlgError:
                 mu *= 10.0
                 continue
-            big = np.max(np.abs(step))
-            if big > max_step:
-                step *= max_step / big
+            step = np.clip(step, -max_step, max_step)   # box trust region in theta
             trial = theta + step
             try:
                 r_new = full_residual(trial)
@@ -485,27 +523,16 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
                 break
             mu *= 4.0
         if not accepted:
-            message = "no decrease of the misfit in 30 damping trials"
-            converged = float(np.max(np.abs(step))) < 1e3 * xtol
-            break
-        theta = trial
-        small = float(np.max(np.abs(step))) < xtol or (cost - c_new) <= 1e-15 * cost
-        cost = c_new
-        mu = max(mu / 3.0, 1e-15 * float(dA.max()))
-        history.append({"iteration": it, "cost": float(cost), "params": coords.as_dict(theta),
+            small = float(np.max(np.abs(gn))) < 1e3 * xtol
+            return theta, small, it, "no decrease of the misfit in 40 damping trials"
+        theta, cost = trial, c_new
+        mu = max(mu / 5.0, 1e-12)
+        history.append({"iteration": it0 + it, "cost": float(cost), "params": coords.as_dict(theta),
                         "step": float(np.max(np.abs(step))), "mu": float(mu)})
         if callback:
             callback(history[-1])
-        if small or cost == 0.0:
-            converged, message = True, "step below tolerance"
-            break
         r, J = full_jac(theta)
-        # first-order optimality: gradient negligible compared with curvature
-        if np.all(np.abs(J.T @ r) <= 1e-10 * np.sqrt(np.diag(J.T @ J) * max(2 * cost, 1e-300)) + 1e-300):
-            converged, message = True, "gradient below tolerance"
-            break
-    return _finish(prob, theta, tp, w, converged, it, history, dict(zip(names, p_start)),
-                   f"levenberg-marquardt/{space}", message, warnings, t0, rel_threshold)
+    return theta, False, max_iter, "maximum iterations reached"
 
 
 # ---------------------------------------------------------------------------
