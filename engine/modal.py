@@ -38,7 +38,7 @@ from dataclasses import dataclass, replace
 from typing import Literal, Sequence
 
 import numpy as np
-from scipy import optimize, signal
+from scipy import ndimage, optimize, signal
 
 __all__ = [
     "ModalError", "Spectra", "Peak", "exponential_window", "force_window",
@@ -104,9 +104,10 @@ class Peak:
     frequency_hz: undamped natural frequency |p|/(2 pi), Hz.
     damping_ratio: viscous damping ratio (exponential window removed).
     sigma_hz: standard uncertainty of the frequency from the fit covariance, Hz.
-    snr_db: peak height of the fitted mode over the fit residual (best channel), dB.
-    confidence: 0..1, from snr_db (0 at <= 6 dB, 1 at >= 26 dB), halved for
-        implausible damping (<= 0 or > 0.2) or manual peaks that did not fit.
+    snr_db: energy the mode explains per output over the noise energy of one
+        bin (about the peak-to-noise ratio of the spectrum), dB.
+    confidence: 0..1, from snr_db (0 at <= 10 dB, 1 at >= 30 dB), halved for
+        implausible damping (<= 0 or > 0.2), 0 if the fit ended on a bound.
     shape: real operating shape at the channels (max |.| = 1), or empty.
     manual: True if added by hand.
     """
@@ -311,7 +312,7 @@ def _real_shape(C: np.ndarray, spec: Spectra) -> tuple[float, ...]:
 
 
 def _confidence(snr_db: float, zeta: float) -> float:
-    c = float(np.clip((snr_db - 6.0) / 20.0, 0.0, 1.0))
+    c = float(np.clip((snr_db - 10.0) / 20.0, 0.0, 1.0))
     if not 0 < zeta < 0.2:
         c *= 0.5
     return c
@@ -370,14 +371,17 @@ def fit_peaks(spec: Spectra, f_init: Sequence[float], *, poly_deg: int = 2,
 
 
 def pick_peaks(spec: Spectra, *, fmin: float | None = None, fmax: float | None = None,
-               min_prominence_db: float = 3.0, min_confidence: float = 0.25,
+               min_prominence_db: float = 3.0, min_rise_db: float = 6.0, min_confidence: float = 0.25,
                method: Literal["sum", "cmif"] = "sum", max_peaks: int | None = None,
                **fit_kw) -> tuple[Peak, ...]:
     """Find and fit the resonances in [fmin, fmax] (Hz) across all channels at once.
 
     Candidates are peaks of the indicator (``indicator``) with a prominence of
-    at least ``min_prominence_db`` in dB; each is then fitted (``fit_peaks``)
-    and kept if its confidence is at least ``min_confidence``.
+    at least ``min_prominence_db`` and rising at least ``min_rise_db`` above
+    the running median of the indicator over +-64 bins; each is then fitted
+    (``fit_peaks``) and kept if its confidence is at least ``min_confidence``
+    (default 0.25, i.e. snr_db >= 15 dB: the largest noise peak of a 4000-bin
+    single-channel spectrum stays below 14 dB).
     """
     f = spec.frequencies_hz
     ind = indicator(spec, method)
@@ -387,6 +391,10 @@ def pick_peaks(spec: Spectra, *, fmin: float | None = None, fmax: float | None =
         raise ModalError(f"frequency band [{fmin}, {fmax}] Hz holds fewer than 3 bins")
     db = 10 * np.log10(np.maximum(ind[lo:hi], np.finfo(float).tiny))
     idx, props = signal.find_peaks(db, prominence=min_prominence_db)
+    floor = 10 * np.log10(np.maximum(ndimage.median_filter(ind, size=129, mode="nearest")[lo:hi],
+                                     np.finfo(float).tiny))
+    rise = db[idx] - floor[idx] >= min_rise_db
+    idx, props = idx[rise], {k: v[rise] for k, v in props.items()}
     if max_peaks is not None and len(idx) > max_peaks:
         keep = np.argsort(props["prominences"])[::-1][:max_peaks]
         idx = np.sort(idx[keep])
