@@ -427,7 +427,7 @@ def _finish(prob: _Problem, theta: np.ndarray, prior_mean: np.ndarray, prior_w: 
 def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *,
              prior: Prior | float | None = 1.0, space: str = "log", max_iter: int = 50,
              xtol: float = 1e-9, max_step: float = 0.7, rel_threshold: float = 0.05,
-             dtol: float = 1e-10, mu0: float = 1e-3, continuation: bool = True,
+             dtol: float = 1e-12, mu0: float = 1e-3, continuation: bool = True,
              callback: Callable[[dict], None] | None = None) -> Estimate:
     """Combined weighted least squares (Levenberg-Marquardt) with Laplace covariance.
 
