@@ -502,6 +502,51 @@ class _Pattern:
                              shape=(n, n))
 
 
+@dataclass(frozen=True)
+class _Block:
+    """A set of DOF fields whose K, M rows/columns are solved on their own."""
+
+    dofs: np.ndarray      # global DOFs of the block, ascending
+    k_pos: np.ndarray     # positions (in the full pattern data) of the block's entries
+    indptr: np.ndarray    # block CSR pattern (renumbered)
+    indices: np.ndarray
+    m_sel: np.ndarray     # positions (in the block data) where M may be non-zero
+    m_indptr: np.ndarray
+
+    @classmethod
+    def build(cls, pat: _Pattern, fields: Sequence[int]) -> "_Block":
+        n = len(pat.indptr) - 1
+        rows = np.repeat(np.arange(n), np.diff(pat.indptr))
+        in_b = np.isin(np.arange(n) % NODE_DOF, fields)
+        dofs = np.flatnonzero(in_b)
+        new = np.full(n, -1)
+        new[dofs] = np.arange(dofs.size)
+        k_pos = np.flatnonzero(in_b[rows] & in_b[pat.indices])
+        brow = new[rows[k_pos]]
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(brow, minlength=dofs.size))])
+        m_sel = np.flatnonzero(pat.m_mask[k_pos])
+        m_indptr = np.concatenate([[0], np.cumsum(np.bincount(brow[m_sel], minlength=dofs.size))])
+        return cls(dofs, k_pos, indptr.astype(np.int32), new[pat.indices[k_pos]].astype(np.int32),
+                   m_sel, m_indptr.astype(np.int32))
+
+    def eig(self, kd: np.ndarray, md: np.ndarray, k: int, sigma: float, n_full: int):
+        """k eigenpairs nearest sigma (shift-invert), vectors expanded to n_full DOFs."""
+        nb = self.dofs.size
+        kb, mb = kd[self.k_pos], md[self.k_pos]
+        # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
+        A = sp.csc_matrix((kb - sigma * mb, self.indices, self.indptr), shape=(nb, nb))
+        M = sp.csr_matrix((mb[self.m_sel], self.indices[self.m_sel], self.m_indptr), shape=(nb, nb))
+        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+        op = spla.LinearOperator((nb, nb), matvec=lu.solve, dtype=float)
+        v0 = np.random.default_rng(20120101).standard_normal(nb)  # reproducible
+        lam, vec = spla.eigsh(A, k=k, M=M, sigma=sigma, OPinv=op, which="LM", v0=v0,
+                              ncv=min(nb - 1, max(2 * k + 1, 20)), tol=1e-10)
+        full = np.zeros((n_full, k))
+        full[self.dofs] = vec
+        return lam, full
+
+
 def _point_matrix(mesh: Mesh, pat: _Pattern, x: float, y: float,
                   diag: Sequence[float]) -> np.ndarray:
     """Data vector of sum_k diag[k] N_k' N_k for the 5 DOF fields at one point."""
@@ -666,20 +711,30 @@ class PlateModel:
         n_modes = int(n_modes)
         c, inert = np.asarray(c, dtype=float), np.asarray(inertias, dtype=float)
         kd, md = self._data(c, inert)
-        K, M = self._pat.matrix(kd), self._pat.mass_matrix(md)
-        k = n_modes + 6 + _SPARE  # spare modes: ARPACK may miss one of a degenerate pair at the end
-        if k >= self.mesh.n_dof - 1:
-            raise FEError(f"n_modes = {n_modes}: mesh has only {self.mesh.n_dof} DOF")
+        n = self.mesh.n_dof
+        if n_modes + 6 + _SPARE >= 0.4 * n - 1:
+            raise FEError(f"n_modes = {n_modes}: too many for a mesh of {n} DOF")
         if sigma is None:
             sigma = -1e-3 * self._omega2_scale(c, inert)
-        # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
-        A = sp.csc_matrix((kd - sigma * md, K.indices, K.indptr), shape=K.shape)
-        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
-        op = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
-        v0 = np.random.default_rng(20120101).standard_normal(self.mesh.n_dof)  # reproducible
-        lam, vec = spla.eigsh(K, k=k, M=M, sigma=sigma, OPinv=op, which="LM", v0=v0,
-                              ncv=min(self.mesh.n_dof - 1, max(2 * k + 1, 20)), tol=1e-10)
+        h = self.laminate.thickness
+        coupled = (np.abs(c[6:12]).max() > 1e-10 * np.abs(c[:6]).max() * h
+                   or abs(inert[1]) > 1e-10 * inert[0] * h)
+        if coupled:
+            lam, vec = self._block("all").eig(kd, md, n_modes + 6 + _SPARE, sigma, n)
+        else:
+            # B = 0, I2 = 0: bending (w0, bx, by) and membrane (u0, v0) decouple;
+            # 3 rigid modes each. Membrane modes are usually far above.
+            lam, vec = self._block("bending").eig(kd, md, n_modes + 3 + _SPARE, sigma, n)
+            top = np.sort(lam)[min(3 + n_modes, lam.size) - 1]
+            km, nm = 6, self._block("membrane").dofs.size
+            while True:
+                lam_m, vec_m = self._block("membrane").eig(kd, md, km, sigma, n)
+                if lam_m.max() > top or km >= 0.4 * nm:
+                    break
+                km *= 2
+            lam, vec = np.concatenate([lam, lam_m]), np.hstack([vec, vec_m])
+        k = lam.size
+        M = self._pat.mass_matrix(md)
         order = np.argsort(lam)
         lam, vec = lam[order], vec[:, order]
         rigid = self._rigid_mask(vec, M)
@@ -695,6 +750,13 @@ class PlateModel:
             raise FEError("eigen solver returned too few elastic modes")
         rigid_max = float(np.sqrt(np.max(np.abs(lam[rigid]))))
         return Modes(np.sqrt(np.maximum(lam_e, 0.0)) / (2.0 * np.pi), lam_e, vec_e, rigid_max)
+
+    def _block(self, name: str) -> _Block:
+        key = "block_" + name
+        if key not in self._cache:
+            fields = {"all": range(NODE_DOF), "bending": (2, 3, 4), "membrane": (0, 1)}[name]
+            self._cache[key] = _Block.build(self._pat, tuple(fields))
+        return self._cache[key]
 
     def _omega2_scale(self, c: np.ndarray, inert: np.ndarray) -> float:
         """Rough first elastic omega^2 (thin-plate estimate), rad^2/s^2."""

@@ -142,12 +142,16 @@ def test_spring_bounce_mode_and_rotary_inertia():
     loaded = sprung.with_point_masses([(a / 2, b / 2, extra)])
     assert loaded.solve(4).rigid_max_omega == pytest.approx(
         np.sqrt(k / (m_total + extra)), rel=1e-4)
-    # rotary inertia on the centre of a mode with a nodal line through it lowers that mode
-    base = model.solve(4)
-    w = model.shapes_at(base, [[a / 2, b / 2]])[:, 0]
-    i = int(np.argmin(np.abs(w)))
-    rot = model.with_point_masses([(a / 2, b / 2, 0.0, 1e-4, 1e-4)]).solve(4)
-    assert rot.frequencies_hz[i] < base.frequencies_hz[i] * 0.999
+    # rotary inertia: first-order shift -1/2 (Iy bx^2 + Ix by^2) of the mode turning most there
+    base = model.solve(6)
+    c = [[a / 2, b / 2]]
+    bx = (model.interpolation(c, component=3) @ base.shapes)[0]
+    by = (model.interpolation(c, component=4) @ base.shapes)[0]
+    i = int(np.argmax(bx**2 + by**2))
+    inertia = 2e-3 / (bx[i] ** 2 + by[i] ** 2)
+    rot = model.with_point_masses([(a / 2, b / 2, 0.0, inertia, inertia)]).solve(6)
+    est = -0.5 * inertia * (bx[i] ** 2 + by[i] ** 2)
+    assert rot.frequencies_hz[i] / base.frequencies_hz[i] - 1 == pytest.approx(est, rel=0.05)
     with pytest.raises(FEError):
         model.with_point_masses([(0.1, 0.1)])
 
@@ -236,3 +240,22 @@ def test_bad_mesh_and_inputs():
         model.solve(4, params={"E": 1e9})
     with pytest.raises(ValueError):
         model.solve(4, params={"E2": -1e9})
+
+
+@pytest.mark.parametrize("lam", [
+    Laminate((Ply(STEEL, 0.0, 0.09),)),                                   # symmetric: split solve
+    Laminate((Ply(STEEL, 0.0, 0.03), Ply(ALU, 0.0, 0.06))),               # coupled solve
+])
+def test_sparse_solver_matches_dense_spectrum_with_inplane_modes(lam):
+    """Thick plate (h/a = 0.3): in-plane (membrane) modes fall among the lowest ones;
+    the shift-invert solve must return exactly the dense generalised spectrum."""
+    model = PlateModel.build(lam, 0.3, 0.3, (3, 3))
+    K, M = model.matrices()
+    w = sl.eigh(K.toarray(), M.toarray(), eigvals_only=True)
+    modes = model.solve(14)
+    np.testing.assert_allclose(modes.omega2, w[6:20], rtol=1e-8)
+    # in-plane modes are among them (u0, v0 carry most of their kinetic energy)
+    uv = np.zeros(model.mesh.n_dof, bool)
+    uv[0::5] = uv[1::5] = True
+    share = np.einsum("ik,ij,jk->k", modes.shapes[uv], M.toarray()[np.ix_(uv, uv)], modes.shapes[uv])
+    assert np.any(share > 0.9)
