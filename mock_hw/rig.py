@@ -200,6 +200,17 @@ class _Template:
     lead: int                     # fine samples before source onset
     fs_fine: float
     group_delay_s: float
+    _env: dict = None
+
+    def running(self, name: str, rising: bool) -> np.ndarray:
+        """Running max (rising) or min of a unit waveform, cached."""
+        if self._env is None:
+            self._env = {}
+        key = (name, rising)
+        if key not in self._env:
+            u = self.fine[name]
+            self._env[key] = np.maximum.accumulate(u) if rising else np.minimum.accumulate(u)
+        return self._env[key]
 
 
 class SimulatedDevice:
@@ -282,26 +293,38 @@ class SimulatedDevice:
         if miss:
             raise NoTrigger(f"{self.name}: no trigger within {spec.trigger_timeout_s:g} s (simulated miss)")
 
+        def take(u: np.ndarray, idx: np.ndarray) -> np.ndarray:
+            if idx[0] >= 0 and idx[-1] < u.size:              # common case: a strided view
+                step = int(idx[1] - idx[0]) if idx.size > 1 else 1
+                return u[idx[0]:idx[-1] + 1:step]
+            ok = (idx >= 0) & (idx < u.size)
+            return np.where(ok, u[np.clip(idx, 0, u.size - 1)], 0.0)
+
         def wave(name: str, idx: np.ndarray) -> np.ndarray:
             u = tpl.fine[name]
-            i = np.clip(idx, 0, u.size - 1)
-            v = amp * np.where(idx < u.size, u[i], 0.0)
+            v = amp * take(u, idx)
             if dbl:
-                j = idx - delay
-                v += amp * sim.double_hit_ratio * np.where((j >= 0) & (j < u.size), u[np.clip(j, 0, u.size - 1)], 0.0)
+                v += (amp * sim.double_hit_ratio) * take(u, idx - delay)
             return v
 
         os_, n, pre = OVERSAMPLE, timing.samples, timing.pretrigger
         if trigger is not None:
-            full = wave(trigger.channel, np.arange(tpl.fine[trigger.channel].size))
-            lv = trigger.level_v
-            hit = (full[:-1] < lv) & (full[1:] >= lv) if trigger.slope == "rising" else \
-                (full[:-1] > lv) & (full[1:] <= lv)
-            cross = np.flatnonzero(hit)
-            if cross.size == 0:
+            lv, rising = trigger.level_v, trigger.slope == "rising"
+            u = tpl.fine[trigger.channel]
+            if not dbl and (lv > 0) == rising and lv != 0:
+                # signal starts at 0: the first crossing is where the running max (min) passes lv/amp
+                env = tpl.running(trigger.channel, rising)
+                ic = int(np.searchsorted(env, lv / amp)) if rising else int(np.searchsorted(-env, -lv / amp))
+                found = ic < u.size
+            else:
+                full = wave(trigger.channel, np.arange(u.size))
+                hit = (full[:-1] < lv) & (full[1:] >= lv) if rising else (full[:-1] > lv) & (full[1:] <= lv)
+                cross = np.flatnonzero(hit)
+                found = cross.size > 0
+                ic = int(cross[0]) + 1 if found else 0
+            if not found:
                 raise NoTrigger(f"{self.name}: channel {trigger.channel!r} never crossed "
                                 f"{lv:g} V ({trigger.slope}) within the record")
-            ic = int(cross[0]) + 1
         else:
             ic = tpl.lead
         # first tick of the free-running sample clock at or after the crossing
@@ -311,12 +334,15 @@ class SimulatedDevice:
         for c in channels:
             v = wave(c.name, idx) if c.name in tpl.fine else np.zeros(n)
             if spec.noise_v:
-                v = v + spec.noise_v * rng.standard_normal(n)
+                v += spec.noise_v * rng.standard_normal(n)
             R = c.range_v
             lsb = 2.0 * R / 2.0**spec.adc_bits
-            over[c.name] = bool(np.any(np.abs(v) >= R))
-            codes = np.clip(np.rint(v / lsb), -2.0**(spec.adc_bits - 1), 2.0**(spec.adc_bits - 1) - 1)
-            data[c.name] = codes * lsb
+            v *= 1.0 / lsb                                   # in ADC steps, in place
+            over[c.name] = bool(v.max() >= R / lsb or v.min() <= -R / lsb)
+            np.rint(v, out=v)
+            np.clip(v, -2.0**(spec.adc_bits - 1), 2.0**(spec.adc_bits - 1) - 1, out=v)
+            v *= lsb
+            data[c.name] = v
         onset_s = (tpl.lead - it) / tpl.fs_fine  # source onset relative to the trigger sample
         meta: dict[str, Any] = {
             "simulated": True, "device": self.name, "seed": self.seed, "shot_index": k,
