@@ -1,0 +1,49 @@
+"""Helpers shared by the views: the 'not available' banner, back-end probing, plot style."""
+from __future__ import annotations
+
+import importlib
+
+import pyqtgraph as pg
+from PySide6.QtWidgets import QLabel
+
+pg.setConfigOptions(antialias=True, foreground="k", background="w")
+
+
+def backend(module: str, *names: str):
+    """The workflow module ``module`` if it exists and defines ``names``, else None."""
+    try:
+        mod = importlib.import_module(module)
+    except ImportError:
+        return None
+    return mod if all(hasattr(mod, n) for n in names) else None
+
+
+class Banner(QLabel):
+    """A one-line notice at the top of a view (info, or warning in amber)."""
+
+    def __init__(self, text: str = ""):
+        super().__init__(text)
+        self.setWordWrap(True)
+        self.info(text)
+
+    def info(self, text: str) -> None:
+        self.setText(text)
+        self.setStyleSheet("QLabel { background: #eef4fb; border: 1px solid #b8cce4; padding: 4px; }")
+        self.setVisible(bool(text))
+
+    def warn(self, text: str) -> None:
+        self.setText(text)
+        self.setStyleSheet("QLabel { background: #fff4d6; border: 1px solid #e0b040; padding: 4px;"
+                           " color: #6a4a00; }")
+        self.setVisible(bool(text))
+
+
+def plot(title: str = "", x: tuple[str, str] = ("", ""), y: tuple[str, str] = ("", "")) -> pg.PlotWidget:
+    w = pg.PlotWidget(title=title)
+    w.setBackground("w")
+    w.showGrid(x=True, y=True, alpha=0.3)
+    if x[0]:
+        w.setLabel("bottom", x[0], x[1])
+    if y[0]:
+        w.setLabel("left", y[0], y[1])
+    return w

@@ -1,0 +1,248 @@
+"""The lab panel's main window: tabs, status bar, background jobs, session state.
+
+State shared by the views is the run file: each view reads what the workflow
+objects wrote there (``/results/...``) and the window stores its own session
+state under ``/results/gui`` (``RunStore.write_group('gui', ...)``), so
+reopening a run restores the views.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Callable
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QPushButton, QTabWidget)
+
+from ..errors import UserError
+from .worker import Job
+
+TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap")
+
+
+class MainWindow(QMainWindow):
+    """``MainWindow(run_path=None)``: the lab panel; ``run_path`` opens an existing run."""
+
+    def __init__(self, run_path: str | None = None):
+        super().__init__()
+        self.setWindowTitle("labid — lab panel")
+        self.resize(1366, 768)
+        self.run_path: str | None = None
+        self.job: Job | None = None
+        self._side_jobs: set[Job] = set()
+        self.messages: list[tuple[str, bool]] = []
+
+        from .acquisition_view import AcquisitionView
+        from .gap_view import GapView
+        from .identification_view import IdentificationView
+        from .modes_view import ModesView
+        from .setup_view import SetupView
+        from .waves_view import WavesView
+        self.setup = SetupView(self)
+        self.acquisition = AcquisitionView(self)
+        self.modes = ModesView(self)
+        self.waves = WavesView(self)
+        self.identification = IdentificationView(self)
+        self.gap = GapView(self)
+        self.views = {"setup": self.setup, "acquisition": self.acquisition, "modes": self.modes,
+                      "waves": self.waves, "identification": self.identification, "gap": self.gap}
+        self.tabs = QTabWidget()
+        for title, w in zip(TABS, self.views.values()):
+            self.tabs.addTab(w, title)
+        self.setCentralWidget(self.tabs)
+
+        sb = self.statusBar()
+        self.status_label = QLabel("ready")
+        self.run_label = QLabel("no run file")
+        self.cancel_btn = QPushButton("Cancel job")
+        self.cancel_btn.setVisible(False)
+        self.cancel_btn.clicked.connect(self.cancel_job)
+        sb.addWidget(self.status_label, 1)
+        sb.addPermanentWidget(self.run_label)
+        sb.addPermanentWidget(self.cancel_btn)
+
+        m = self.menuBar().addMenu("&File")
+        for text, key, slot in (("&Open run…", QKeySequence.Open, self._open_dialog),
+                                ("&Save session", QKeySequence.Save, self.save_session),
+                                ("Write &report…", None, self._report_dialog),
+                                ("&Quit", QKeySequence.Quit, self.close)):
+            a = QAction(text, self)
+            if key is not None:
+                a.setShortcut(key)
+            a.triggered.connect(slot)
+            m.addAction(a)
+        if run_path:
+            self.open_run(run_path)
+
+    # -- messages ------------------------------------------------------------------
+    def message(self, text: str, error: bool = False) -> None:
+        """One line in the status bar (red for a problem)."""
+        self.messages.append((text, error))
+        self.status_label.setText(text)
+        self.status_label.setToolTip(text)
+        self.status_label.setStyleSheet("color: #b00000; font-weight: bold;" if error else "")
+
+    # -- jobs ----------------------------------------------------------------------------
+    def busy(self) -> bool:
+        return self.job is not None
+
+    def start_job(self, name: str, fn: Callable, on_done: Callable[[Any], None], *,
+                  on_progress: Callable[[Any], None] | None = None,
+                  on_failed: Callable[[str], None] | None = None, exclusive: bool = True) -> Job | None:
+        """Run ``fn(progress, should_stop)`` in a background thread.
+
+        ``exclusive`` jobs (acquisition, analysis, identification, diagnosis)
+        run one at a time and can be cancelled from the status bar.
+        """
+        if exclusive and self.job is not None:
+            self.message(f"{self.job.name} is running; wait for it or cancel it", error=True)
+            return None
+        job = Job(name, fn)
+        if on_progress:
+            job.progress.connect(on_progress)
+
+        def ok(result):
+            if job.cancelled and exclusive and name not in ("acquisition",):
+                self.message(f"{name}: cancelled")
+                return
+            on_done(result)
+
+        def bad(msg: str):
+            self.message(f"{name}: {msg}", error=msg != "cancelled")
+            if on_failed:
+                on_failed(msg)
+
+        job.succeeded.connect(ok)
+        job.failed.connect(bad)
+
+        def ended():
+            if exclusive and self.job is job:
+                self.job = None
+                self.cancel_btn.setVisible(False)
+            self._side_jobs.discard(job)
+
+        job.ended.connect(ended)
+        if exclusive:
+            self.job = job
+            self.cancel_btn.setVisible(True)
+            self.message(f"{name}: running…")
+        self._side_jobs.add(job)
+        job.start()
+        return job
+
+    def cancel_job(self) -> None:
+        if self.job is not None:
+            self.job.cancel()
+            self.message(f"{self.job.name}: cancelling…")
+
+    # -- the run file -----------------------------------------------------------------------
+    def set_run_path(self, path: str, reload: bool = True) -> None:
+        self.run_path = str(path)
+        self.run_label.setText(f"run: {Path(path).name}")
+        self.acquisition.run_edit.setText(str(path))
+        if reload:
+            self.run_changed()
+
+    def open_run(self, path: str) -> bool:
+        """Open an existing run file and restore the views; a bad file shows a message."""
+        from ..runstore import RunStore
+        try:
+            with RunStore(path, "r") as store:
+                spec_toml, rig_toml = store.specimen_toml(), store.rig_toml()
+                try:
+                    gui = store.read_group("gui")
+                except KeyError:
+                    gui = {}
+        except UserError as e:
+            self.message(str(e), error=True)
+            return False
+        except OSError as e:  # h5py oddities on a damaged file
+            self.message(f"{path}: cannot read the run file ({e})", error=True)
+            return False
+        state = _decode_state(gui)
+        self.set_run_path(path, reload=False)
+        self.setup.restore(state.get("setup", {}), spec_toml, rig_toml)
+        for key, view in self.views.items():
+            if key != "setup" and hasattr(view, "restore"):
+                view.restore(state.get(key, {}))
+        self.run_changed()
+        if "tab" in state:
+            self.tabs.setCurrentIndex(int(state["tab"]))
+        self.message(f"opened {path}")
+        return True
+
+    def run_changed(self) -> None:
+        """The run file changed (new shots or results): let every view reload."""
+        for view in self.views.values():
+            if hasattr(view, "reload"):
+                view.reload()
+
+    def session_state(self) -> dict:
+        st = {"tab": int(self.tabs.currentIndex())}
+        for key, view in self.views.items():
+            if hasattr(view, "state"):
+                st[key] = view.state()
+        return st
+
+    def save_session(self) -> bool:
+        """Store the session state in the run file (``/results/gui``)."""
+        if not self.run_path:
+            self.message("no run file to save the session in; choose one on the Acquisition tab", error=True)
+            return False
+        if self.busy():
+            self.message(f"{self.job.name} is running; save the session when it has finished", error=True)
+            return False
+        from ..runstore import RunStore
+        try:
+            with RunStore(self.run_path, "a") as store:
+                store.write_group("gui", {"state_json": json.dumps(self.session_state())})
+        except UserError as e:
+            self.message(str(e), error=True)
+            return False
+        except OSError as e:
+            self.message(f"{self.run_path}: cannot write the session ({e})", error=True)
+            return False
+        self.message(f"session saved in {self.run_path}")
+        return True
+
+    # -- dialogs --------------------------------------------------------------------------------
+    def _open_dialog(self) -> None:
+        p, _ = QFileDialog.getOpenFileName(self, "Open run", "", "HDF5 run (*.h5);;All (*)")
+        if p:
+            self.open_run(p)
+
+    def _report_dialog(self) -> None:
+        if not self.run_path:
+            self.message("no run file", error=True)
+            return
+        p, _ = QFileDialog.getSaveFileName(self, "Report", str(Path(self.run_path).with_suffix(".html")),
+                                           "HTML (*.html)")
+        if p:
+            self.write_report(p)
+
+    def write_report(self, out: str) -> Job | None:
+        from ..report import write_report
+        run = self.run_path
+
+        def work(progress, should_stop):
+            return write_report(run, out)
+
+        return self.start_job("report", work, lambda path: self.message(f"report written: {path}"))
+
+    def closeEvent(self, e) -> None:  # noqa: N802
+        for job in list(self._side_jobs):
+            job.cancel()
+        for job in list(self._side_jobs):
+            job.wait(5000)
+        super().closeEvent(e)
+
+
+def _decode_state(gui: dict) -> dict:
+    text = gui.get("state_json") if isinstance(gui, dict) else None
+    if not text:
+        return {}
+    try:
+        return json.loads(text)
+    except (TypeError, ValueError):
+        return {}
