@@ -1,0 +1,361 @@
+"""High-frequency analysis: complex Morlet CWT, arrival times, group velocity.
+
+Paper section 3 (Figs. 5-9): the scalogram |W(f, t)| of a guided-wave record
+peaks, at each frequency, at the arrival time of the wave packet of that
+frequency; distance / delay is the group velocity.
+
+Wavelet: PyWavelets' complex Morlet ``cmorB-C``,
+    psi(t) = (pi B)^(-1/2) exp(-t^2 / B) exp(2 i pi C t),
+whose Fourier transform is the Gaussian exp(-B (w - 2 pi C)^2 / 4). At the
+analysis frequency f (scale a = C fs / f samples) its energy has a time
+standard deviation ``sigma_t = C sqrt(B) / (2 f)`` and a frequency standard
+deviation ``sigma_f = f / (2 pi C sqrt(B))`` (sigma_t sigma_f = 1/(4 pi)).
+Defaults are the paper's: B = 2, C = 1 (aluminium to 50 kHz); B = 2, C = 5
+(CFRP to 200 kHz).
+
+Arrival of a frequency: the first maximum of the scalogram in a time gate
+(so that edge reflections and the other mode cannot capture it), refined by a
+parabola through log|W| (exact for a Gaussian envelope). Frequency of an
+arrival: either the nominal analysis frequency (the paper) or the
+instantaneous frequency of W at the arrival ("reassigned"), which removes
+the bias the wavelet's finite bandwidth causes on a dispersive signal with
+a sloping spectrum (``docs/wavelet-bias.md``).
+
+Units: s, Hz, m, m/s. Times are on the record's axis: t = (n - t0_index) / fs.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Literal, Sequence
+
+import numpy as np
+import pywt
+from scipy import fft as sfft
+
+__all__ = [
+    "WaveError", "Wavelet", "PAPER_ALUMINIUM", "PAPER_CFRP", "cwt", "white_noise_level",
+    "Arrivals", "arrival_times", "velocity_gate", "expected_gate", "GroupVelocity",
+    "group_velocity", "correct_dispersion_bias",
+]
+
+
+class WaveError(ValueError):
+    """Inconsistent input to the wave analysis (rates, grids, gates)."""
+
+
+@dataclass(frozen=True)
+class Wavelet:
+    """Complex Morlet wavelet ``cmorB-C``: bandwidth B, centre frequency C (dimensionless)."""
+
+    bandwidth: float = 2.0
+    center: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (self.bandwidth > 0 and self.center > 0):
+            raise WaveError(f"Morlet bandwidth and centre must be > 0, got B={self.bandwidth!r}, C={self.center!r}")
+
+    @property
+    def name(self) -> str:
+        """PyWavelets name, e.g. 'cmor2-1'."""
+        return f"cmor{self.bandwidth:g}-{self.center:g}"
+
+    def scales(self, freqs_hz: np.ndarray, fs_hz: float) -> np.ndarray:
+        """Scales (samples) of the analysis frequencies, via ``pywt.frequency2scale``."""
+        return np.asarray(pywt.frequency2scale(self.name, np.asarray(freqs_hz, float) / fs_hz))
+
+    def time_std_s(self, f_hz):
+        """Time standard deviation of the wavelet's energy at frequency f, s."""
+        return self.center * np.sqrt(self.bandwidth) / (2.0 * np.asarray(f_hz, float))
+
+    def freq_std_hz(self, f_hz):
+        """Frequency standard deviation of the wavelet's energy at frequency f, Hz."""
+        return np.asarray(f_hz, float) / (2.0 * np.pi * self.center * np.sqrt(self.bandwidth))
+
+
+PAPER_ALUMINIUM = Wavelet(2.0, 1.0)
+PAPER_CFRP = Wavelet(2.0, 5.0)
+
+
+def _check_grid(x: np.ndarray, fs_hz: float, freqs: np.ndarray) -> None:
+    if x.ndim != 1 or x.size < 8:
+        raise WaveError(f"expected a 1-D record of at least 8 samples, got shape {x.shape}")
+    if not fs_hz > 0:
+        raise WaveError(f"sample rate must be > 0 Hz, got {fs_hz!r}")
+    if freqs.ndim != 1 or freqs.size == 0 or not np.all((freqs > 0) & (freqs < fs_hz / 2)):
+        raise WaveError(f"analysis frequencies must lie in (0, fs/2 = {fs_hz / 2:g}) Hz")
+
+
+def _bank(freqs: np.ndarray, fs_hz: float, wavelet: Wavelet, nfft: int) -> np.ndarray:
+    """(nf, nfft) Fourier filters sqrt(a) exp(-B (a w - 2 pi C)^2 / 4), w in rad/sample."""
+    a = wavelet.scales(freqs, fs_hz)[:, None]
+    w = 2 * np.pi * sfft.fftfreq(nfft)[None, :]
+    return np.sqrt(a) * np.exp(-wavelet.bandwidth * (a * w - 2 * np.pi * wavelet.center) ** 2 / 4)
+
+
+def cwt(x: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavelet: Wavelet = PAPER_ALUMINIUM,
+        method: Literal["fft", "pywt"] = "fft") -> np.ndarray:
+    """Complex CWT W (nf, n) of record ``x`` sampled at ``fs_hz`` at the frequencies ``freqs_hz``.
+
+    'fft': the exact analytic Morlet filter bank applied in the Fourier domain
+    (record zero-padded to avoid wrap-around); W = sum_n x[n] conj(psi_a[n - b]) / sqrt(a).
+    'pywt': ``pywt.cwt(..., method='fft')`` (integrated-wavelet approximation;
+    it lags the analytic transform by half a sample).
+    """
+    x = np.asarray(x, float)
+    freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+    _check_grid(x, fs_hz, freqs)
+    n = x.size
+    if method == "pywt":
+        W, _ = pywt.cwt(x, wavelet.scales(freqs, fs_hz), wavelet.name, sampling_period=1.0 / fs_hz, method="fft")
+        return W
+    if method != "fft":
+        raise WaveError(f"cwt method must be 'fft' or 'pywt', got {method!r}")
+    # pad by 4 time-std of the widest wavelet (the lowest frequency)
+    pad = int(np.ceil(4 * wavelet.time_std_s(freqs.min()) * fs_hz))
+    nfft = sfft.next_fast_len(n + pad)
+    X = sfft.fft(x, nfft)
+    return sfft.ifft(X[None, :] * _bank(freqs, fs_hz, wavelet, nfft), axis=1, workers=1)[:, :n]
+
+
+def white_noise_level(std: float, fs_hz: float, freqs_hz: Sequence[float],
+                      wavelet: Wavelet = PAPER_ALUMINIUM) -> np.ndarray:
+    """RMS of |W| (per frequency) that white noise of standard deviation ``std`` produces."""
+    freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+    nfft = 1 << 16
+    H = _bank(freqs, fs_hz, wavelet, nfft)
+    return std * np.sqrt((H ** 2).sum(axis=1) / nfft)
+
+
+@dataclass(frozen=True)
+class Arrivals:
+    """Arrival time of each analysis frequency (NaN where rejected).
+
+    times_s: arrival times on the record's time axis.
+    sigma_s: standard uncertainty of each time (resolution / sqrt(2 SNR)).
+    snr_db: scalogram peak over the noise level at that frequency.
+    inst_freq_hz: instantaneous frequency of W at the arrival.
+    valid: accepted (inside the gate, enough energy, no leakage from other frequencies).
+    reason: '' or why a frequency was rejected.
+    """
+
+    frequencies_hz: np.ndarray
+    times_s: np.ndarray
+    sigma_s: np.ndarray
+    snr_db: np.ndarray
+    inst_freq_hz: np.ndarray
+    valid: np.ndarray
+    reason: tuple[str, ...]
+    wavelet: Wavelet
+
+
+def _as_gate(gate, nf: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    if gate is None:
+        return np.full(nf, t[0]), np.full(nf, t[-1])
+    lo, hi = (np.broadcast_to(np.asarray(g, float), (nf,)).copy() for g in gate)
+    return lo, hi
+
+
+def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavelet: Wavelet = PAPER_ALUMINIUM, *,
+                  t0_index: int = 0, gate_s=None, first_fraction: float = 0.5,
+                  noise_rms: np.ndarray | float | None = None, min_snr_db: float = 20.0,
+                  min_rel_db: float = -30.0, max_freq_offset: float = 1.0) -> Arrivals:
+    """Arrival time of each frequency from the scalogram |W| (nf, n).
+
+    gate_s: (lo, hi) times in s (scalars or per frequency); the arrival must be
+        a maximum strictly inside it.
+    first_fraction: the first local maximum reaching this fraction of the
+        gate's maximum is the arrival (the direct wave, not a later echo).
+    noise_rms: RMS of |W| of the noise per frequency (``white_noise_level``);
+        if None, taken from the scalogram before the gate opens (if at least
+        one wavelet time-std of samples is there), else SNR is not checked.
+    min_snr_db: reject weaker arrivals. min_rel_db: reject frequencies whose
+        peak is that far below the strongest frequency's.
+    max_freq_offset: reject arrivals whose instantaneous frequency is more
+        than this many wavelet frequency-std away from the analysis frequency
+        (the scalogram there shows leakage of other frequencies).
+    """
+    W = np.asarray(W)
+    freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+    nf, n = W.shape
+    if nf != freqs.size:
+        raise WaveError(f"{nf} scalogram rows for {freqs.size} frequencies")
+    t = (np.arange(n) - t0_index) / fs_hz
+    lo, hi = _as_gate(gate_s, nf, t)
+    A = np.abs(W)
+    tiny = np.finfo(float).tiny
+    times = np.full(nf, np.nan)
+    finst = np.full(nf, np.nan)
+    peak = np.zeros(nf)
+    noise = np.full(nf, np.nan)
+    reason = [""] * nf
+    tstd = wavelet.time_std_s(freqs)
+    if noise_rms is not None:
+        noise = np.broadcast_to(np.asarray(noise_rms, float), (nf,)).copy()
+    for i in range(nf):
+        k0 = max(int(np.ceil((lo[i] - t[0]) * fs_hz)), 0)
+        k1 = min(int(np.floor((hi[i] - t[0]) * fs_hz)) + 1, n)
+        if k1 - k0 < 3:
+            reason[i] = "empty gate"
+            continue
+        a = A[i, k0:k1]
+        m = a.max()
+        if noise_rms is None and k0 >= tstd[i] * fs_hz:
+            noise[i] = np.sqrt(np.mean(A[i, :k0] ** 2))
+        if m <= 0:
+            reason[i] = "no signal"
+            continue
+        inner = (a[1:-1] >= a[:-2]) & (a[1:-1] > a[2:]) & (a[1:-1] >= first_fraction * m)
+        cand = np.flatnonzero(inner) + 1
+        if cand.size == 0:
+            reason[i] = "peak on the gate edge"
+            continue
+        k = k0 + int(cand[0])
+        la, lb, lc = np.log(np.maximum(A[i, k - 1:k + 2], tiny))
+        den = la - 2 * lb + lc
+        d = 0.5 * (la - lc) / den if den < 0 else 0.0
+        d = float(np.clip(d, -0.5, 0.5))
+        times[i] = t[k] + d / fs_hz
+        peak[i] = np.exp(lb - 0.25 * (la - lc) * d)
+        # instantaneous frequency: phase slope around the peak, interpolated at k + d
+        ph = np.unwrap(np.angle(W[i, k - 1:k + 2]))
+        fi = np.diff(ph) * fs_hz / (2 * np.pi)  # at k - 1/2 and k + 1/2
+        finst[i] = fi[0] + (fi[1] - fi[0]) * (d + 0.5)
+    snr = 20 * np.log10(np.maximum(peak, tiny) / np.maximum(noise, tiny))
+    snr[~np.isfinite(noise)] = np.inf
+    rel = 20 * np.log10(np.maximum(peak, tiny) / max(peak.max(), tiny))
+    valid = np.isfinite(times)
+    for i in range(nf):
+        if not valid[i]:
+            continue
+        if snr[i] < min_snr_db:
+            reason[i] = f"SNR {snr[i]:.1f} dB < {min_snr_db:g} dB"
+        elif rel[i] < min_rel_db:
+            reason[i] = f"energy {rel[i]:.1f} dB below the strongest frequency"
+        elif abs(finst[i] - freqs[i]) > max_freq_offset * wavelet.freq_std_hz(freqs[i]):
+            reason[i] = f"leakage: instantaneous frequency {finst[i]:.4g} Hz"
+        if reason[i]:
+            valid[i] = False
+    snr_lin = np.where(np.isfinite(snr), 10 ** (np.minimum(snr, 200) / 10), np.inf)
+    sigma = np.sqrt((tstd / np.sqrt(2 * snr_lin)) ** 2 + (1.0 / (fs_hz * np.sqrt(12)) / 10) ** 2)
+    return Arrivals(freqs, times, sigma, snr, finst, valid, tuple(reason), wavelet)
+
+
+def correct_dispersion_bias(arr: Arrivals, degree: int = 3) -> Arrivals:
+    """Arrivals with the wavelet's dispersion-curvature bias removed.
+
+    For a chirped packet with group delay tau(w) analysed by a Gaussian
+    window of amplitude std s (rad/s), the scalogram maximum lies later than
+    the group delay at the instantaneous frequency by
+        delta = tau'' / 2 * a / (a^2 + tau'^2),   a = 1 / s^2,
+    (second-order expansion, ``docs/wavelet-bias.md``); tau', tau'' are taken
+    from a smooth fit (polynomial of ``degree`` in ln w, weighted by 1/sigma)
+    of the measured delays against the instantaneous frequencies. Needs at
+    least degree + 2 valid frequencies; returned unchanged otherwise.
+    """
+    ok = arr.valid & np.isfinite(arr.inst_freq_hz) & (arr.inst_freq_hz > 0)
+    if ok.sum() < degree + 2:
+        return arr
+    w = 2 * np.pi * arr.inst_freq_hz
+    x = np.log(w[ok])
+    c = np.polynomial.polynomial.polyfit(x - x.mean(), arr.times_s[ok], degree, w=1.0 / arr.sigma_s[ok])
+    xx = np.log(np.where(ok, w, 1.0)) - x.mean()
+    d1 = np.polynomial.polynomial.polyval(xx, np.polynomial.polynomial.polyder(c, 1))
+    d2 = np.polynomial.polynomial.polyval(xx, np.polynomial.polynomial.polyder(c, 2))
+    ww = np.where(ok, w, 1.0)
+    tau1 = d1 / ww
+    tau2 = (d2 - d1) / ww ** 2
+    wl = arr.wavelet
+    s = 2 * np.pi * arr.frequencies_hz * np.sqrt(2.0 / wl.bandwidth) / (2 * np.pi * wl.center)
+    a = 1.0 / s ** 2
+    delta = np.where(ok, 0.5 * tau2 * a / (a ** 2 + tau1 ** 2), 0.0)
+    return replace(arr, times_s=arr.times_s - delta)
+
+
+def velocity_gate(distance_m: float, v_min: float, v_max: float, source_time_s: float = 0.0) -> tuple[float, float]:
+    """Time gate (s) for waves from a source at ``source_time_s`` travelling ``distance_m`` at v_min..v_max (m/s)."""
+    if not 0 < v_min < v_max:
+        raise WaveError(f"velocity gate needs 0 < v_min < v_max, got {v_min!r}, {v_max!r}")
+    return source_time_s + distance_m / v_max, source_time_s + distance_m / v_min
+
+
+def expected_gate(distance_m: float, cg_expected: np.ndarray, *, margin: float = 0.25,
+                  source_time_s: float | np.ndarray = 0.0, reflection_m: float | None = None,
+                  faster_cg: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frequency gate around an expected group velocity curve (m/s).
+
+    Arrivals between ``distance / (cg (1 + margin))`` and ``distance / (cg (1 - margin))``
+    after the source; closed before half-way to the echo over ``reflection_m``
+    (shortest reflected path) and opened after half-way from a faster mode
+    (``faster_cg``, e.g. S0 when picking A0).
+    """
+    cg = np.asarray(cg_expected, float)
+    lo = source_time_s + distance_m / (cg * (1 + margin))
+    hi = source_time_s + distance_m / (cg * (1 - margin))
+    if reflection_m is not None:
+        hi = np.minimum(hi, source_time_s + 0.5 * (distance_m + reflection_m) / cg)
+    if faster_cg is not None:
+        fast = np.asarray(faster_cg, float)
+        lo = np.maximum(lo, source_time_s + 0.5 * (distance_m / fast + distance_m / cg))
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class GroupVelocity:
+    """Group velocity per frequency (NaN where invalid)."""
+
+    frequencies_hz: np.ndarray
+    velocity_m_s: np.ndarray
+    sigma_m_s: np.ndarray
+    valid: np.ndarray
+
+
+def group_velocity(far: Arrivals, distance_m: float, near: Arrivals | None = None, *,
+                   near_distance_m: float = 0.0, source_time_s: float = 0.0,
+                   assign: Literal["nominal", "instantaneous"] = "instantaneous") -> GroupVelocity:
+    """Group velocity from arrival times.
+
+    Source to sensor: ``(distance_m - near_distance_m) / (t_far - t_near)``,
+    ``t_near`` from ``near`` (the force channel's or a nearer sensor's
+    arrivals), else ``source_time_s``.
+    assign: 'nominal' gives each velocity the analysis frequency (the paper);
+    'instantaneous' gives it the instantaneous frequency of the far record at
+    its arrival and interpolates back onto the analysis grid (where the
+    reassigned frequencies increase monotonically), which removes the wavelet
+    bandwidth bias.
+    """
+    d = distance_m - near_distance_m
+    if not d > 0:
+        raise WaveError(f"propagation distance must be > 0 m, got {d!r}")
+    t1 = near.times_s if near is not None else np.full(far.times_s.shape, float(source_time_s))
+    s1 = near.sigma_s if near is not None else np.zeros(far.times_s.shape)
+    ok1 = near.valid if near is not None else np.ones(far.times_s.shape, bool)
+    delay = far.times_s - t1
+    valid = far.valid & ok1 & (delay > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v = np.where(valid, d / delay, np.nan)
+        sv = np.where(valid, v * np.hypot(far.sigma_s, s1) / delay, np.nan)
+    f = far.frequencies_hz
+    if assign == "nominal":
+        return GroupVelocity(f, v, sv, valid)
+    if assign != "instantaneous":
+        raise WaveError(f"assign must be 'nominal' or 'instantaneous', got {assign!r}")
+    fi = far.inst_freq_hz
+    idx = np.flatnonzero(valid)
+    # keep the longest run where the reassigned frequency increases
+    keep = np.zeros(f.size, bool)
+    if idx.size >= 2:
+        inc = np.diff(fi[idx]) > 0
+        best, start = (0, 0), 0
+        for j in range(1, idx.size + 1):
+            if j == idx.size or not inc[j - 1]:
+                if j - start > best[1] - best[0]:
+                    best = (start, j)
+                start = j
+        keep[idx[best[0]:best[1]]] = True
+    if keep.sum() < 2:
+        return GroupVelocity(f, np.full(f.shape, np.nan), np.full(f.shape, np.nan), np.zeros(f.shape, bool))
+    fk, vk, sk = fi[keep], v[keep], sv[keep]
+    inside = (f >= fk[0]) & (f <= fk[-1])
+    vi = np.where(inside, np.interp(f, fk, vk), np.nan)
+    si = np.where(inside, np.interp(f, fk, sk), np.nan)
+    return GroupVelocity(f, vi, si, inside)
