@@ -74,6 +74,24 @@ def study(spec) -> list[str]:
     return rows
 
 
+def validation() -> list[str]:
+    """FV12 and Leissa errors at the default mesh (ORACLES.md)."""
+    from engine.laminate import Laminate, Material, Ply
+    steel = Material.isotropic_from(200e9, 8000.0, nu=0.3, name="steel")
+    fv12 = np.array([1.622, 2.360, 2.922, 4.190, 4.190, 7.356, 7.356, 7.668])
+    leissa = np.array([13.47, 19.60, 24.27, 34.80, 34.80, 61.09, 61.09, 63.69])
+    f = PlateModel.build(Laminate((Ply(steel, 0.0, 0.05),)), 10.0, 10.0).solve(8).frequencies_hz
+    rows = ["| case | relative errors of the 8 modes (%) |", "|---|---|",
+            "| NAFEMS FV12 | " + " ".join(f"{e:+.3f}" for e in 100 * (f / fv12 - 1)) + " |"]
+    for r in (0.001, 0.005, 0.02, 0.1):
+        lam = Laminate((Ply(steel, 0.0, r),))
+        D = 200e9 * r**3 / (12 * (1 - 0.09))
+        om = np.sqrt(PlateModel.build(lam, 1.0, 1.0).solve(8).omega2)
+        err = 100 * (om * np.sqrt(8000.0 * r / D) / leissa - 1)
+        rows.append(f"| Leissa, h/a = {r:g} | " + " ".join(f"{e:+.3f}" for e in err) + " |")
+    return rows
+
+
 def perf(spec, repeat: int) -> list[str]:
     L, W = spec.length, spec.width
     tracemalloc.start()
@@ -127,6 +145,7 @@ def main() -> None:
              f"Date: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. Plate: {spec.name}, "
              f"{spec.length} x {spec.width} m.", ""]
     if not args.no_study:
+        lines += ["### Validation at the default mesh", ""] + validation() + [""]
         lines += ["### Mesh convergence (10 elastic modes)", ""] + study(spec) + [""]
     lines += ["### Performance at the default mesh", ""] + perf(spec, args.repeat)
     print("\n".join(lines))

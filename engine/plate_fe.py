@@ -572,6 +572,7 @@ class PlateModel:
             Kref, Mref = _reference_matrices()
             _parts = (Kref, Mref, _Pattern.build(mesh), _material_maps(laminate, shear_factor))
         self._Ke, self._Me, self._pat, self._maps = _parts
+        self._Kflat = np.ascontiguousarray(self._Ke.transpose(1, 0, 2, 3).reshape(21, -1))
         nnz = self._pat.indices.size
         self._k_add = np.zeros(nnz) if k_add is None else k_add
         self._m_add = np.zeros(nnz) if m_add is None else m_add
@@ -668,7 +669,7 @@ class PlateModel:
     def _data(self, c: np.ndarray, inert: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """K and M data vectors on the common pattern."""
         pat = self._pat
-        Kc = np.tensordot(c, self._Ke, axes=(0, 1)).reshape(6, 6400)   # per combo
+        Kc = (c @ self._Kflat).reshape(6, 6400)   # unit element matrix per scale combo
         kd = pat.scatter @ (pat.type_scales @ Kc).ravel() + self._k_add
         Mc = np.tensordot(inert, self._Me, 1).ravel()
         md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
