@@ -1,0 +1,19 @@
+"""``labid report RUN.h5 [--out REPORT.html]``: a self-contained HTML test report."""
+from __future__ import annotations
+
+from .cli import add_json_option
+
+
+def register(sub) -> None:
+    p = sub.add_parser("report", help="self-contained HTML report of a run",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("run", metavar="RUN.h5", help="run file")
+    p.add_argument("--out", metavar="REPORT.html", default=None, help="output (default RUN.html)")
+    add_json_option(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> dict:
+    from .report import write_report
+    out = write_report(args.run, args.out)
+    return {"out": out}

@@ -1,0 +1,440 @@
+"""The test report: one self-contained HTML file per run (figures as base64 PNG).
+
+``write_report(RUN.h5, out=None) -> path`` (``labid report``). Sections:
+specimen and setup, spectra with picks, scalogram, dispersion fit, identified
+constants with uncertainty, gap diagnosis. A section whose data the run does
+not hold is replaced by a one-line note saying what is missing.
+
+Everything shown is read from the run file: the configuration texts, the raw
+shots and the ``/results`` groups written by the workflow (analysis,
+identification, diagnosis, gui). Figures are drawn with matplotlib (Agg).
+Display-only transforms of raw data (an averaged amplitude spectrum, a
+scalogram with ``engine.waves.cwt``) are computed here when the analysis did
+not store its own curves; picks, velocities, constants and the diagnosis
+always come from the workflow's results, never recomputed.
+"""
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import UserError
+
+#: where the workflow's results may sit under /results (first match wins)
+FEATURES_GROUPS = ("features", "analysis/features", "analysis")
+IDENT_GROUPS = ("identification", "identify")
+GAP_GROUPS = ("diagnosis", "gap", "diagnose")
+
+
+@dataclass
+class RunData:
+    """What the report (and the panel) reads from a run file."""
+
+    path: str
+    specimen_toml: str = ""
+    rig_toml: str = ""
+    attrs: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)
+    hammer: list = field(default_factory=list)
+    wave: list = field(default_factory=list)
+    results: dict = field(default_factory=dict)
+
+
+def load_run(path: str | Path, max_shots: int = 20) -> RunData:
+    """Read configuration, shots (at most ``max_shots`` per kind) and every results group."""
+    from .runstore import RunStore
+    with RunStore(path, "r") as st:
+        rd = RunData(str(path), st.specimen_toml(), st.rig_toml())
+        rd.attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in st._f.attrs.items()}
+        rd.counts = {k: st.n_shots(k) for k in ("hammer", "wave")}
+        if rd.counts["hammer"]:
+            rd.hammer = st.shots("hammer")[:max_shots]
+        if rd.counts["wave"]:
+            rd.wave = st.shots("wave")[:max_shots]
+        if "results" in st._f:
+            for name in st._f["results"]:
+                try:
+                    rd.results[name] = st.read_group(name)
+                except (KeyError, ValueError, OSError):
+                    continue
+    return rd
+
+
+def lookup(results: dict, paths: tuple[str, ...]) -> Any:
+    """The first of ``paths`` ('a/b') present in the nested results dict, else None."""
+    for p in paths:
+        node: Any = results
+        for part in p.split("/"):
+            if isinstance(node, dict) and part in node:
+                node = node[part]
+            else:
+                node = None
+                break
+        if node is not None:
+            return node
+    return None
+
+
+def features_of(rd: RunData) -> dict:
+    """The measured features (CONTRACT section 2) stored in the run, or {}."""
+    f = lookup(rd.results, FEATURES_GROUPS)
+    if isinstance(f, dict) and isinstance(f.get("features"), dict):
+        f = f["features"]
+    if isinstance(f, dict) and isinstance(f.get("json"), str):
+        import json
+        try:
+            return json.loads(f["json"])
+        except ValueError:
+            return {}
+    return f if isinstance(f, dict) and ("modal" in f or "waves" in f) else {}
+
+
+def _waves_list(w: Any) -> list[dict]:
+    if isinstance(w, dict):
+        return [w]
+    return [x for x in (w or []) if isinstance(x, dict)]
+
+
+# ------------------------------------------------------------------ figures
+def _fig_png(fig) -> str:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _img(b64: str, alt: str) -> str:
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
+
+
+def _plt():
+    import matplotlib
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def average_spectrum(records: list) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """Display spectrum of the hammer shots: the summed normalised indicator of
+    ``engine.modal`` over the accelerometer channels (H1 when a force is recorded)."""
+    from engine import modal
+    if not records:
+        return None
+    r0 = records[0]
+    acc = [c.name for c in r0.channels if c.kind == "accelerometer"] or [c.name for c in r0.channels]
+    force = next((c.name for c in r0.channels if c.kind == "force"), None)
+    x = np.array([[r.scaled(c) for c in acc] for r in records])
+    F = np.array([r.scaled(force) for r in records]) if force else None
+    spec = modal.spectra(x, r0.timing.rate_hz, F, pretrigger=r0.timing.pretrigger, channels=acc)
+    return spec.frequencies_hz, modal.indicator(spec), spec.kind
+
+
+def fig_spectrum(rd: RunData, feats: dict) -> str | None:
+    spec = lookup(rd.results, ("analysis/spectrum", "analysis/modal/spectrum", "modal/spectrum"))
+    if isinstance(spec, dict) and "frequencies_hz" in spec:
+        f = np.asarray(spec["frequencies_hz"])
+        y = np.asarray(spec.get("indicator", spec.get("magnitude")))
+        y = y if y.ndim == 1 else (y ** 2).sum(axis=0)
+        label = "stored spectrum"
+    else:
+        got = average_spectrum(rd.hammer)
+        if got is None:
+            return None
+        f, y, kind = got
+        label = f"summed normalised {'|H1|²' if kind == 'frf' else 'auto-spectra'} of {len(rd.hammer)} hits"
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    ax.semilogy(f[1:], y[1:], lw=0.8, color="#1f77b4", label=label)
+    picks = np.asarray((feats.get("modal") or {}).get("frequencies_hz", []), float)
+    top = float(np.nanmax(y[1:])) if len(y) > 1 else 1.0
+    for i, fp in enumerate(picks):
+        ax.axvline(fp, color="#d62728", lw=0.8, ls="--", label="picked resonances" if i == 0 else None)
+    model = _model_frequencies(rd)
+    for i, fm in enumerate(model):
+        ax.plot([fm], [top * 1.5], "v", color="#2ca02c", label="identified model" if i == 0 else None)
+    if len(picks):
+        ax.set_xlim(0, min(f[-1], 1.25 * picks.max()))
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("indicator")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.grid(alpha=0.3)
+    return _fig_png(fig)
+
+
+def _model_frequencies(rd: RunData) -> np.ndarray:
+    ident = lookup(rd.results, IDENT_GROUPS)
+    blocks = ident.get("blocks") if isinstance(ident, dict) else None
+    out = []
+    if isinstance(blocks, dict):
+        for b in blocks.values():
+            if isinstance(b, dict) and b.get("kind") == "modal" and "predicted" in b:
+                out.extend(np.atleast_1d(np.asarray(b["predicted"], float)))
+    return np.asarray(out)
+
+
+def fig_scalogram(rd: RunData, feats: dict) -> str | None:
+    from engine import waves as W
+    if not rd.wave:
+        return None
+    rec = rd.wave[0]
+    chans = [c.name for c in rec.channels]
+    name = chans[-1]
+    x = rec.scaled(name)
+    fs = rec.timing.rate_hz
+    fmax = min(0.4 * fs, 500e3)
+    freqs = np.linspace(fmax / 40, fmax, 60)
+    Wm = np.abs(W.cwt(x, fs, freqs, W.Wavelet(2.0, 5.0)))
+    t = rec.time()
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
+    ridge = lookup(rd.results, ("analysis/arrivals", "analysis/waves/arrivals"))
+    if isinstance(ridge, dict) and "times_s" in ridge:
+        ax.plot(np.asarray(ridge["times_s"]) * 1e6, np.asarray(ridge["frequencies_hz"]) / 1e3, "w.-",
+                ms=3, lw=0.8, label="picked arrival ridge")
+        ax.legend(loc="upper right", fontsize=8)
+    ax.set_xlabel("time after trigger (µs)")
+    ax.set_ylabel("frequency (kHz)")
+    ax.set_title(f"|CWT| of {rec.meta.get('shot', 'wave shot')}, channel {name} (Morlet B=2, C=5)", fontsize=9)
+    return _fig_png(fig)
+
+
+def fig_dispersion(rd: RunData, feats: dict) -> str | None:
+    ws = _waves_list(feats.get("waves"))
+    if not ws:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 3.6))
+    for w in ws:
+        f = np.asarray(w.get("frequency_hz", []), float)
+        v = np.asarray(w.get("group_velocity_m_s", []), float)
+        s = np.asarray(w.get("sigma_m_s", np.zeros_like(v)), float)
+        ax.errorbar(f / 1e3, v, yerr=s, fmt="o", ms=3, capsize=2,
+                    label=f"measured {w.get('mode', '')} {w.get('direction_deg', 0):g}°")
+    ident = lookup(rd.results, IDENT_GROUPS)
+    blocks = ident.get("blocks") if isinstance(ident, dict) else None
+    if isinstance(blocks, dict):
+        for name, b in blocks.items():
+            if isinstance(b, dict) and b.get("kind") == "waves" and "predicted" in b and ws:
+                f = np.asarray(ws[0].get("frequency_hz", []), float)
+                p = np.asarray(b["predicted"], float)
+                if p.shape == f.shape:
+                    ax.plot(f / 1e3, p, "-", color="#2ca02c", label=f"SAFE, identified ({name})")
+    ax.set_xlabel("frequency (kHz)")
+    ax.set_ylabel("group velocity (m/s)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _fig_png(fig)
+
+
+def fig_gap(gap: dict) -> str | None:
+    effects = [e for e in (gap.get("effects") or []) if isinstance(e, dict)]
+    g = gap.get("gap") or {}
+    if not effects:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9, 3.0))
+    names = [str(e.get("name")) for e in effects]
+    after = [float(e.get("gap_after", np.nan)) for e in effects]
+    ax.barh(names[::-1], after[::-1], color="#9ecae1", label="gap after modelling the effect")
+    before = _scalar(g.get("before"))
+    if before is not None:
+        ax.axvline(before, color="#d62728", ls="--", label="gap before")
+    ax.set_xlabel("gap (misfit measure)")
+    ax.legend(fontsize=8)
+    return _fig_png(fig)
+
+
+def _scalar(v: Any) -> float | None:
+    if isinstance(v, (int, float, np.floating, np.integer)):
+        return float(v)
+    if isinstance(v, dict):
+        for k in ("total", "rms", "value", "chi2"):
+            if k in v:
+                return _scalar(v[k])
+    return None
+
+
+# ------------------------------------------------------------------ html
+def _fmt(v: float) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "—"
+    a = abs(v)
+    if a >= 1e6:
+        return f"{v / 1e9:.4g} GPa" if a >= 1e8 else f"{v:.4g}"
+    return f"{v:.4g}"
+
+
+def _table(rows: list[list[str]], head: list[str]) -> str:
+    h = "".join(f"<th>{html.escape(x)}</th>" for x in head)
+    b = "".join("<tr>" + "".join(f"<td>{x}</td>" for x in r) + "</tr>" for r in rows)
+    return f"<table><tr>{h}</tr>{b}</table>"
+
+
+def _note(text: str) -> str:
+    return f'<p class="note">{html.escape(text)}</p>'
+
+
+def section_setup(rd: RunData) -> str:
+    out = []
+    if rd.specimen_toml:
+        try:
+            from .specimen import specimen_from_dict
+            sp = specimen_from_dict(tomllib.loads(rd.specimen_toml), "run file")
+            lam = sp.laminate
+            angles = ", ".join(f"{p.angle_deg:g}" for p in lam.plies) if hasattr(lam.plies[0], "angle_deg") else ""
+            rows = [["name", html.escape(sp.name)],
+                    ["plate", f"{sp.length * 1e3:.1f} × {sp.width * 1e3:.1f} mm, "
+                              f"{lam.thickness * 1e3:.3f} mm thick, {sp.mass * 1e3:.1f} g"],
+                    ["plies", f"{len(lam.plies)}" + (f" [{angles}]°" if angles else "")]]
+            out.append(_table(rows, ["specimen", ""]))
+            mats = tomllib.loads(rd.specimen_toml).get("materials", {})
+            mrows = [[html.escape(n)] + [html.escape(f"{k} = {v:g}") for k, v in m.items()]
+                     for n, m in mats.items() if isinstance(m, dict)]
+            width = max((len(r) for r in mrows), default=1)
+            out.append(_table([r + [""] * (width - len(r)) for r in mrows],
+                              ["material"] + ["nominal constants (SI)"] + [""] * (width - 2)))
+        except Exception as e:  # noqa: BLE001 - a report still gets written
+            out.append(_note(f"specimen text stored in the run could not be read: {e}"))
+    else:
+        out.append(_note("no specimen recorded in this run"))
+    if rd.rig_toml:
+        try:
+            from .rig import rig_from_text
+            rig = rig_from_text(rd.rig_toml, "run file")
+            rows = [[html.escape(d.name), d.role, html.escape(d.product), f"{d.timing.rate_hz:g}",
+                     f"{d.timing.samples}", f"{d.timing.pretrigger}",
+                     html.escape(", ".join(c.name for c in d.channels)),
+                     html.escape(f"{d.trigger.channel} {d.trigger.level_v:g} V {d.trigger.slope}"
+                                 if d.trigger else "—")] for d in rig.devices]
+            out.append(f"<p>Rig: {html.escape(rig.name)}</p>")
+            out.append(_table(rows, ["device", "role", "product", "rate (Hz)", "samples", "pre-trigger",
+                                     "channels", "trigger"]))
+        except Exception as e:  # noqa: BLE001
+            out.append(_note(f"rig text stored in the run could not be read: {e}"))
+    backends = sorted({r.backend for r in rd.hammer + rd.wave})
+    out.append(f"<p>Shots: {rd.counts.get('hammer', 0)} hammer, {rd.counts.get('wave', 0)} wave; "
+               f"backend {html.escape(', '.join(backends) or '—')}; "
+               f"{html.escape(str(rd.attrs.get('creator', '')))}, file created "
+               f"{html.escape(str(rd.attrs.get('file_time', '')))}.</p>")
+    gui = rd.results.get("gui")
+    if isinstance(gui, dict) and gui.get("state_json"):
+        import json
+        try:
+            st = json.loads(gui["state_json"]).get("setup", {})
+            t = st.get("temperature_c")
+            if isinstance(t, (int, float)) and math.isfinite(t):
+                out.append(f"<p>Air temperature (environment probe): {t:.2f} °C</p>")
+        except ValueError:
+            pass
+    return "".join(out)
+
+
+def section_constants(rd: RunData) -> str:
+    ident = lookup(rd.results, IDENT_GROUPS)
+    params = ident.get("parameters") if isinstance(ident, dict) else None
+    if not isinstance(params, dict) or not params:
+        return _note("no identification in this run (run labid identify, or Identify in the panel)")
+    nominal = {}
+    try:
+        mats = tomllib.loads(rd.specimen_toml).get("materials", {})
+        nominal = next(iter(mats.values())) if mats else {}
+    except tomllib.TOMLDecodeError:
+        pass
+    rows = []
+    for n, p in params.items():
+        v, s = float(p.get("value", np.nan)), float(p.get("std", np.nan))
+        nom = nominal.get(n)
+        rows.append([html.escape(n), _fmt(v), _fmt(s), f"{100 * s / abs(v):.2g} %" if v else "—",
+                     _fmt(float(nom)) if isinstance(nom, (int, float)) else "—"])
+    res = ident.get("residual") or {}
+    conv = ident.get("converged")
+    extra = (f"<p>converged: {html.escape(str(bool(conv)))}; residual: "
+             + ", ".join(f"{html.escape(k)} = {_fmt(_scalar(v)) if _scalar(v) is not None else '—'}"
+                         for k, v in res.items()) + "</p>")
+    return _table(rows, ["parameter", "value", "std", "rel. std", "nominal (specimen file)"]) + extra
+
+
+def section_gap(rd: RunData) -> str:
+    gap = lookup(rd.results, GAP_GROUPS)
+    if not isinstance(gap, dict) or not gap:
+        return _note("no gap diagnosis in this run (run labid diagnose, or Diagnose in the panel)")
+    g = gap.get("gap") or {}
+    out = [f"<p><b>Verdict: {html.escape(str(gap.get('verdict', '—')))}</b>. Gap before: "
+           f"{html.escape(_fmt(_scalar(g.get('before'))) if _scalar(g.get('before')) is not None else '—')}, "
+           f"after: {html.escape(_fmt(_scalar(g.get('after'))) if _scalar(g.get('after')) is not None else '—')}.</p>"]
+    where = gap.get("where") or []
+    if where:
+        out.append("<p>Where: " + html.escape(", ".join(str(w) if not isinstance(w, dict) else
+                                                       str(w.get("name", w)) for w in where)) + "</p>")
+    effects = [e for e in (gap.get("effects") or []) if isinstance(e, dict)]
+    if effects:
+        rows = [[str(i + 1), html.escape(str(e.get("name"))), _fmt(_scalar(e.get("magnitude"))),
+                 html.escape(str(e.get("unit", ""))), _fmt(_scalar(e.get("gap_after"))),
+                 _fmt(_scalar(e.get("score")))] for i, e in enumerate(effects)]
+        out.append(_table(rows, ["rank", "effect", "magnitude", "unit", "gap after", "score"]))
+        png = fig_gap(gap)
+        if png:
+            out.append(_img(png, "gap before and after each effect"))
+    return "".join(out)
+
+
+CSS = """body{font-family:sans-serif;max-width:980px;margin:1em auto;color:#222}
+h1{font-size:1.5em}h2{font-size:1.15em;border-bottom:1px solid #ccc;margin-top:1.6em}
+table{border-collapse:collapse;margin:.5em 0;font-size:.9em}td,th{border:1px solid #ccc;padding:2px 6px;
+text-align:left}th{background:#f0f0f0}.note{color:#7a5a00;background:#fff6dc;padding:4px 8px;
+border-left:4px solid #e0b040}img{max-width:100%}"""
+
+
+def build_report(run: str | Path) -> str:
+    """The HTML text of the report of run file ``run``."""
+    rd = load_run(run)
+    feats = features_of(rd)
+    parts = [f"<h1>labid test report — {html.escape(Path(run).name)}</h1>",
+             f"<p>Generated {time.strftime('%Y-%m-%d %H:%M:%S %Z')} from {html.escape(str(run))}.</p>",
+             "<h2>1. Specimen and setup</h2>", section_setup(rd),
+             "<h2>2. Spectra with picks</h2>"]
+    if not rd.hammer:
+        parts.append(_note("no hammer shots in this run"))
+    else:
+        png = fig_spectrum(rd, feats)
+        parts.append(_img(png, "spectra with picks") if png else _note("no spectrum"))
+        m = feats.get("modal") or {}
+        fr = m.get("frequencies_hz")
+        if fr is not None and len(fr):
+            sig = m.get("sigma_hz", [np.nan] * len(fr))
+            parts.append(_table([[str(i + 1), f"{float(f):.3f}", f"{float(s):.3g}"]
+                                 for i, (f, s) in enumerate(zip(fr, sig))], ["mode", "frequency (Hz)", "σ (Hz)"]))
+        else:
+            parts.append(_note("no resonance picks stored in this run (run labid analyze)"))
+    parts.append("<h2>3. Scalogram</h2>")
+    png = fig_scalogram(rd, feats) if rd.wave else None
+    parts.append(_img(png, "scalogram") if png else _note("no wave shots in this run"))
+    parts.append("<h2>4. Dispersion fit</h2>")
+    png = fig_dispersion(rd, feats)
+    parts.append(_img(png, "group velocity") if png else _note("no group velocities in this run"))
+    parts += ["<h2>5. Identified constants</h2>", section_constants(rd),
+              "<h2>6. Gap diagnosis</h2>", section_gap(rd)]
+    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>labid report {html.escape(Path(run).name)}"
+            f"</title><style>{CSS}</style></head><body>{''.join(parts)}</body></html>\n")
+
+
+def write_report(run: str | Path, out: str | Path | None = None) -> str:
+    """Write the report of ``run`` to ``out`` (default: RUN.html next to it); returns the path."""
+    out = Path(out) if out else Path(run).with_suffix(".html")
+    text = build_report(run)
+    try:
+        out.write_text(text)
+    except OSError as e:
+        raise UserError(f"cannot write: {e.strerror}", file=str(out), key="--out") from None
+    return str(out)
