@@ -19,13 +19,25 @@ keeps exactly six zero-energy (rigid-body) modes.
 
 Units SI: m, kg, s, Pa; eigenvalues lambda = omega^2 in rad^2/s^2.
 
-Linearity: all elements of the uniform mesh are identical, so each element
-matrix is a fixed linear combination of 21 unit element matrices (the
-independent entries of A, B, D, H) for K and of 3 (I1, I2, I3) for M. These in
-turn are linear in each material's reduced stiffnesses (Q11, Q12, Q22, Q66,
-G13, G23) and density. Re-solving for new constants therefore only forms a
-21-vector, one 80x80 element matrix and one sparse scatter of fixed pattern:
-no re-assembly.
+Linearity: every element matrix is a fixed linear combination of 21 unit
+element matrices (the independent entries of A, B, D, H) for K and of 3 (I1,
+I2, I3) for M; for a rectangle of size (hx, hy) each unit matrix is itself a
+combination of 6 reference matrices with factors that are monomials in hx, hy.
+A, B, D, H are linear in each material's reduced stiffnesses (Q11, Q12, Q22,
+Q66, G13, G23) and I1, I2, I3 in its density. Re-solving for new constants
+therefore only forms a 21-vector, one 80x80 matrix per element size and one
+sparse scatter of fixed pattern: no re-assembly.
+
+Meshes: uniform free-edge meshes converge only like O(h) because of the
+Mindlin free-edge boundary layer (width ~ thickness); the default mesh adds one
+row of elements 2 thicknesses wide along every edge (bench/RESULTS.md).
+
+Eigen solver: shift-invert Lanczos (ARPACK eigsh) with a small negative shift,
+SuperLU factorisation of K - sigma M. When B = 0 and I2 = 0 (symmetric
+layups) the bending (w0, bx, by) and membrane (u0, v0) blocks are solved
+apart. The six rigid-body modes are recognised by their mass-weighted
+projection on the analytic rigid-body vectors and excluded; exactly six must
+be found.
 """
 from __future__ import annotations
 
@@ -413,8 +425,11 @@ def _material_maps(lam: Laminate, shear_factor: float) -> dict[str, tuple[np.nda
         idx = [(0, 0), (0, 1), (1, 1), (2, 2)][k]
         Q[idx] = Q[idx[::-1]] = 1.0
         units.append(Q)
+    seen: dict[str, Material] = {}
     for k, ply in enumerate(lam.plies):
         name = ply.material.name
+        if seen.setdefault(name, ply.material) != ply.material:
+            raise FEError(f"two different materials are both named {name!r}; expected distinct names")
         L, R = maps.setdefault(name, (np.zeros((21, 6)), np.zeros(3)))
         z0, z1 = z[k], z[k + 1]
         d1, d2, d3 = z1 - z0, (z1**2 - z0**2) / 2.0, (z1**3 - z0**3) / 3.0
