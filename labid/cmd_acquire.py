@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import signal
 import sys
+from pathlib import Path
 
 from .cli import add_json_option, write_json
 from .errors import UserError
@@ -36,9 +37,25 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _remove_if_empty(path: Path, existed: bool) -> None:
+    """Do not leave behind a run file this command created without recording anything."""
+    from .runstore import RunStore
+    if existed or not path.exists():
+        return
+    try:
+        with RunStore(path, "r") as s:
+            empty = s.n_shots() == 0
+    except Exception:  # noqa: BLE001
+        return
+    if empty:
+        path.unlink()
+
+
 def run(args) -> dict:
     from .acquisition import AcquisitionSession
+    from .rig import load_rig
     from .runstore import RunStore
+    from .specimen import load_specimen
 
     effects = None
     if args.effects:
@@ -68,15 +85,23 @@ def run(args) -> dict:
         sys.stderr.write(f"{ev['kind']} {ev['index']}/{ev['total']}: {ev['message']}\n")
         sys.stderr.flush()
 
-    with RunStore(args.out, "a") as store:
-        session = AcquisitionSession(args.rig, args.specimen, store, backend=args.backend,
-                                     effects=effects, seed=args.seed)
-        old = signal.signal(signal.SIGINT, on_sigint)
-        try:
-            summary = session.run(args.hits, args.waves, progress=progress,
-                                  should_stop=lambda: stop["flag"], total=args.total)
-        finally:
-            signal.signal(signal.SIGINT, old)
+    rig, specimen = load_rig(args.rig), load_specimen(args.specimen)   # errors before any file
+    rig.check_specimen(specimen.length, specimen.width)
+    out = Path(args.out)
+    existed = out.exists()
+    try:
+        with RunStore(out, "a") as store:
+            session = AcquisitionSession(rig, specimen, store, backend=args.backend,
+                                         effects=effects, seed=args.seed)
+            old = signal.signal(signal.SIGINT, on_sigint)
+            try:
+                summary = session.run(args.hits, args.waves, progress=progress,
+                                      should_stop=lambda: stop["flag"], total=args.total)
+            finally:
+                signal.signal(signal.SIGINT, old)
+    except UserError:
+        _remove_if_empty(out, existed)
+        raise
     rec = summary["recorded"]
     sys.stderr.write(f"labid acquire: recorded {rec['hammer']} hammer and {rec['wave']} wave shots "
                      f"into {args.out} ({summary['in_file']['hammer']} + {summary['in_file']['wave']} "

@@ -70,6 +70,7 @@ def test_bad_rig_files_exit_2_naming_the_cause(tmp_path, capsys, edit, words):
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     for w in words:
         assert w in line, (w, line)
+    assert not (tmp_path / "r.h5").exists()
 
 
 def test_missing_ni_driver_is_one_line_exit_2(tmp_path, capsys):
@@ -77,6 +78,7 @@ def test_missing_ni_driver_is_one_line_exit_2(tmp_path, capsys):
                          "--backend", "nidaqmx", "--hits", "1"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "--backend mock" in err
+    assert not (tmp_path / "r.h5").exists()          # no empty run file left behind
 
 
 def test_bad_effect_exit_2(tmp_path, capsys):
@@ -204,3 +206,11 @@ def test_ctrl_c_stops_cleanly_with_summary(tmp_path):
     assert summary["interrupted"] and summary["recorded"]["hammer"] >= 2
     with RunStore(p, "r") as s:
         assert s.n_shots("hammer") == summary["recorded"]["hammer"]
+
+
+def test_documented_example_rig_parses():
+    text = (ROOT / "docs" / "rig-file.md").read_text()
+    example = text.split("## Minimal example")[1].split("```toml")[1].split("```")[0]
+    rig = rig_from_text(example, "docs example")
+    assert rig.device("wave").trigger.channel == "hammer_hf"
+    assert rig.wave_sensor("strain1").distance_m == 0.375
