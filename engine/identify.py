@@ -342,12 +342,18 @@ def _identifiability(names: Sequence[str], blocks: Sequence[DataBlock], jacs: Se
                      prior_w: np.ndarray, cov_theta: np.ndarray, rel_threshold: float) -> dict:
     """Which data set constrains which parameter.
 
-    For each block b alone (with the prior), the posterior std of each
-    coordinate; a block "constrains" a parameter when its std is below
+    Per parameter: the marginal relative std and the conditional one (if all
+    the other parameters were known: 1/sqrt of the diagonal information), so
+    that a parameter the data see but cannot separate from another shows a
+    small conditional and a large marginal std. For each block b alone (with
+    the prior), the posterior std of each coordinate; a block "constrains" a parameter when its std is below
     ``rel_threshold`` (and below half the prior std). Singular values of the
     whitened block Jacobians and the weakest combined direction are reported.
     """
     std_all = np.sqrt(np.diag(cov_theta))
+    info = sum((J.T @ J for J in jacs), np.diag(prior_w ** 2))
+    with np.errstate(divide="ignore"):
+        cond_std = 1.0 / np.sqrt(np.diag(info))
     per_block: dict[str, dict] = {}
     constrained: dict[str, list[str]] = {n: [] for n in names}
     prior_sd = np.where(prior_w > 0, 1.0 / np.where(prior_w > 0, prior_w, 1.0), np.inf)
@@ -370,6 +376,7 @@ def _identifiability(names: Sequence[str], blocks: Sequence[DataBlock], jacs: Se
     for j, n in enumerate(names):
         params[n] = {
             "rel_std": float(std_all[j]),
+            "conditional_rel_std": float(cond_std[j]),
             "identified": bool(std_all[j] < rel_threshold),
             "constrained_by": constrained[n],
         }

@@ -1,0 +1,107 @@
+"""``labid identify FEATURES.json``: elastic constants from modal and/or wave features.
+
+The ``--json`` result has CONTRACT section 3 keys ``parameters`` ({name:
+{value, std}}, SI), ``converged`` and ``residual`` ({modal_rms_rel,
+waves_rms_rel}, null for absent data), plus ``correlation``,
+``identifiability``, ``warnings``, ``method`` and, with ``--starts N``, the
+multi-start study.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .cli import add_json_option
+from .errors import UserError
+from .identification import (METHODS, load_problem, multi_start, load_features,
+                             parse_assignments, plot_multi_start, random_starts, run, _start)
+
+
+def register(sub) -> None:
+    p = sub.add_parser("identify", help="identify elastic constants from a features file",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("features", metavar="FEATURES.json")
+    p.add_argument("--params", metavar="P1,P2,..",
+                   help="constants to identify (E1 E2 nu12 G12 G13 G23 density, or E G nu density); "
+                        "default: what the data can constrain")
+    p.add_argument("--start", metavar="P=V,..", help="initial values in SI units (default: specimen nominal)")
+    p.add_argument("--method", choices=METHODS, default="lm",
+                   help="lm: combined least squares (default); bayes: Lai & Ip update (Eq. 20); "
+                        "nelder-mead: relative misfit (Eq. 29)")
+    p.add_argument("--prior", type=float, default=None, metavar="S",
+                   help="prior std of log(p) about the start (lm), or relative prior std (bayes, default 0.5)")
+    p.add_argument("--starts", type=int, default=0, metavar="N",
+                   help="also run a multi-start study from N random initial guesses (within +-50%% of the start)")
+    p.add_argument("--workers", type=int, default=2, metavar="W", help="processes for --starts (default 2)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run --starts on a Dask distributed scheduler")
+    p.add_argument("--plot", metavar="PATH", help="scatter plot of the multi-start study (PNG)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of --starts")
+    add_json_option(p)
+    p.set_defaults(func=_run)
+
+
+def _run(args: argparse.Namespace) -> dict:
+    problem = load_problem(args.features)
+    names = None
+    if args.params:
+        names = tuple(n.strip() for n in args.params.split(",") if n.strip())
+        if not names:
+            raise UserError(f"value {args.params!r}: expected P1,P2,..", key="--params")
+    start = parse_assignments(args.start, "--start")
+    if args.prior is not None and not args.prior > 0:
+        raise UserError(f"value {args.prior!r}: expected a positive number", key="--prior")
+    if args.starts < 0 or args.workers < 1:
+        raise UserError("expected --starts >= 0 and --workers >= 1", key="--starts")
+    est = run(problem, names, start, method=args.method, prior=args.prior)
+    out = est.to_dict()
+    out["data"] = list(problem.kinds)
+    out["specimen"] = problem.specimen.name
+    if args.starts:
+        st0 = _start(problem, est.names, start)
+        starts = random_starts(st0, est.names, args.starts, seed=args.seed)
+        doc = load_features(args.features)
+        executor = None
+        client = None
+        if args.scheduler:
+            try:
+                from dask.distributed import Client  # noqa: PLC0415
+            except ImportError:
+                raise UserError("dask.distributed is not installed (pip install 'dask[distributed]')",
+                                key="--scheduler") from None
+            try:
+                client = Client(args.scheduler, timeout=10)
+            except (OSError, TimeoutError) as e:
+                raise UserError(f"cannot reach scheduler {args.scheduler!r}: {e}", key="--scheduler") from None
+            executor = client.get_executor()
+        try:
+            results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
+                                  prior=args.prior, executor=executor, max_workers=args.workers)
+        finally:
+            if client is not None:
+                client.close()
+        out["multi_start"] = results
+        if args.plot:
+            plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
+    if args.json != "-":
+        _print(out, est.names)
+    return out
+
+
+def _print(out: dict, names) -> None:
+    w = sys.stdout.write
+    w(f"{out['specimen']}: data {'+'.join(out['data'])}, method {out['method']}, "
+      f"{'converged' if out['converged'] else 'NOT converged'} in {out['iterations']} iterations\n")
+    ident = out["identifiability"]["parameters"]
+    for n in names:
+        v, s = out["parameters"][n]["value"], out["parameters"][n]["std"]
+        unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
+        flag = "" if ident[n]["identified"] else "   (poorly identified)"
+        w(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}\n")
+    r = out["residual"]
+    w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
+    for msg in out["warnings"]:
+        w(f"  note: {msg}\n")
+    if "multi_start" in out:
+        ok = sum(1 for m in out["multi_start"] if m.get("converged"))
+        w(f"  multi-start: {ok}/{len(out['multi_start'])} converged\n")
