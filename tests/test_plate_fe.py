@@ -85,6 +85,16 @@ def test_cfrp_default_mesh_converged(cfrp_modes):
     assert np.max(np.abs(uni / ref - 1)) > 2 * np.max(np.abs(cfrp_modes.frequencies_hz / ref - 1))
 
 
+@pytest.mark.parametrize("size", [(0.6, 0.2), (0.2, 0.45)])
+def test_default_mesh_converged_on_rectangles(size):
+    L, W = size
+    t = CFRP.thickness
+    f = PlateModel.build(CFRP, L, W).solve(10).frequencies_hz
+    fine = Mesh.graded(L, W, 16, [t / 2, 2 * t, 8 * t])
+    ref = PlateModel.build(CFRP, L, W, fine).solve(10).frequencies_hz
+    np.testing.assert_allclose(f, ref, rtol=1e-3)
+
+
 def test_coefficients_reproduce_abdh(cfrp_model):
     c, inert = cfrp_model.coefficients()
     c_ref, i_ref = coefficients_from_abdh(abdh(CFRP))
