@@ -56,17 +56,28 @@ def load_run(path: str | Path, max_shots: int = 20) -> RunData:
         rd = RunData(str(path), st.specimen_toml(), st.rig_toml())
         rd.attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in st._f.attrs.items()}
         rd.counts = {k: st.n_shots(k) for k in ("hammer", "wave")}
-        if rd.counts["hammer"]:
+        if rd.counts["hammer"] and max_shots:
             rd.hammer = st.shots("hammer")[:max_shots]
-        if rd.counts["wave"]:
+        if rd.counts["wave"] and max_shots:
             rd.wave = st.shots("wave")[:max_shots]
         if "results" in st._f:
             for name in st._f["results"]:
                 try:
-                    rd.results[name] = st.read_group(name)
+                    rd.results[name] = decode_group(st.read_group(name))
                 except (KeyError, ValueError, OSError):
                     continue
     return rd
+
+
+def decode_group(g: Any) -> Any:
+    """A results group as written by the panel: its JSON copy when it has one."""
+    if isinstance(g, dict) and isinstance(g.get("json"), str):
+        import json
+        try:
+            return json.loads(g["json"])
+        except ValueError:
+            return g
+    return g
 
 
 def lookup(results: dict, paths: tuple[str, ...]) -> Any:

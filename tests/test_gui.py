@@ -145,3 +145,58 @@ def test_serial_probe_temperature_then_unplugged(win, qtbot):
     assert win.setup.temperature_label.text().startswith("—")
     shot(win, "setup_serial_unplugged")
     win.setup.poll.stop()
+
+
+# ---------------------------------------------------------------- identification off the GUI thread
+@pytest.fixture
+def features_file(tmp_path):
+    ident = pytest.importorskip("labid.identification")
+    doc = ident.synthetic_features("cfrp", n_modes=6, waves=(("A0", 0.0, 100e3, 8),))
+    p = tmp_path / "features.json"
+    p.write_text(json.dumps(doc))
+    return p, doc
+
+
+def test_event_loop_turns_while_identification_runs(win, qtbot, features_file, tmp_path):
+    path, doc = features_file
+    view = win.identification
+    assert view.load_features_file(str(path))
+    win.tabs.setCurrentIndex(4)
+    for n, cb in view.param_checks.items():
+        cb.setChecked(n in ("E1", "E2", "G12", "G13"))
+    view.starts_spin.setValue(4)
+    view.start_edit.setText("E1=110e9,E2=7e9,G12=6e9,G13=4e9")
+    ticks = []
+    timer = QTimer()
+    timer.setInterval(10)
+    timer.timeout.connect(lambda: ticks.append(view.job is not None))
+    timer.start()
+    qtbot.mouseClick(view.run_btn, Qt.LeftButton)
+    assert view.job is not None
+    qtbot.waitUntil(lambda: view.job is None, timeout=60_000)
+    timer.stop()
+    # the timer fired many times while the job was running: the GUI thread was free
+    assert sum(ticks) >= 5
+    res = view.result
+    assert res is not None and res["converged"]
+    # noise-free synthetic data: the nominal constants come back (outside truth: the specimen file)
+    for n in ("E1", "E2", "G12"):
+        truth = {"E1": 136.7e9, "E2": 9.0e9, "G12": 5.0e9}[n]
+        assert res["parameters"][n]["value"] == pytest.approx(truth, rel=1e-3)
+    assert len(res["multi_start"]) == 4 and res["iterations"] >= 2
+    assert view.table.rowCount() == 4
+    shot(win, "identification")
+
+
+def test_identification_can_be_cancelled(win, qtbot, features_file):
+    path, _ = features_file
+    view = win.identification
+    assert view.load_features_file(str(path))
+    view.starts_spin.setValue(50)
+    qtbot.mouseClick(view.run_btn, Qt.LeftButton)
+    qtbot.waitUntil(lambda: "model evaluations" in view.progress_label.text()
+                    or "multi-start" in view.progress_label.text(), timeout=30_000)
+    qtbot.mouseClick(view.cancel_btn, Qt.LeftButton)
+    qtbot.waitUntil(lambda: view.job is None, timeout=30_000)
+    assert view.result is None
+    assert win.messages[-1][0].endswith("cancelled")

@@ -1,27 +1,420 @@
-"""Identification tab (placeholder until its back-end lands)."""
+"""Identification tab: parameters and data (modal / waves / combined), estimate ± std,
+convergence history, multi-start scatter and the identifiability view.
+
+The work is ``labid.identification`` (the same workflow as ``labid identify``):
+``problem_from_features`` -> ``run`` and ``random_starts`` -> ``multi_start``,
+in a background job. The data blocks are wrapped so that the job reports each
+model evaluation and stops at the next one when cancelled.
+"""
 from __future__ import annotations
 
-from PySide6.QtWidgets import QVBoxLayout, QWidget
+import json
+import math
+from dataclasses import replace
 
-from .common import Banner, backend
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, QGridLayout,
+                               QGroupBox, QHBoxLayout, QHeaderView, QLabel, QPushButton, QRadioButton,
+                               QLineEdit, QSpinBox, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
+
+from ..errors import UserError
+from .common import Banner, backend, plot
+from .worker import Cancelled
+
+DATA = ("modal", "waves", "combined")
+SYMBOLS = ("o", "s", "t", "d", "+", "x")
+COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+
+
+def _unit(name: str) -> tuple[str, float]:
+    if name.startswith("nu"):
+        return "", 1.0
+    if name == "density":
+        return "kg/m³", 1.0
+    return "GPa", 1e-9
+
+
+def select_data(doc: dict, data: str) -> dict:
+    """The features document restricted to 'modal', 'waves' or 'combined' data."""
+    out = dict(doc)
+    if data == "modal":
+        out.pop("waves", None)
+    elif data == "waves":
+        out.pop("modal", None)
+    return out
+
+
+def cancellable(blocks, should_stop, progress):
+    """Data blocks whose model evaluations report progress and honour cancellation."""
+    count = {"n": 0}
+
+    def wrap(fn):
+        if fn is None:
+            return None
+
+        def inner(*a, **kw):
+            if should_stop():
+                raise Cancelled()
+            count["n"] += 1
+            progress(("eval", count["n"]))
+            return fn(*a, **kw)
+        return inner
+
+    return [replace(b, predict=wrap(b.predict), jacobian=wrap(b.jacobian)) for b in blocks]
 
 
 class IdentificationView(QWidget):
     def __init__(self, main, parent=None):
         super().__init__(parent)
         self.main = main
+        self.result: dict | None = None
+        self.features_file_doc: dict | None = None
         self.banner = Banner()
+        # controls
+        self.data_radios = {d: QRadioButton(d) for d in DATA}
+        grp = QButtonGroup(self)
+        for r in self.data_radios.values():
+            grp.addButton(r)
+        self.data_radios["combined"].setChecked(True)
+        self.param_box = QGroupBox("parameters")
+        self.param_layout = QGridLayout(self.param_box)
+        self.param_checks: dict[str, QCheckBox] = {}
+        self.method_combo = QComboBox()
+        self.method_combo.addItems(["lm", "bayes", "nelder-mead"])
+        self.starts_spin = QSpinBox()
+        self.starts_spin.setRange(0, 200)
+        self.starts_spin.setValue(0)
+        self.start_edit = QLineEdit()
+        self.start_edit.setPlaceholderText("start P=V,.. (SI; default: nominal)")
+        self.load_btn = QPushButton("Load features…")
+        self.run_btn = QPushButton("Identify")
+        self.cancel_btn = QPushButton("Cancel")
+        self.cancel_btn.setEnabled(False)
+        self.progress_label = QLabel("")
+        ctl = QGroupBox("data and method")
+        cl = QGridLayout(ctl)
+        row = QHBoxLayout()
+        for r in self.data_radios.values():
+            row.addWidget(r)
+        cl.addWidget(QLabel("data"), 0, 0)
+        cl.addLayout(row, 0, 1)
+        cl.addWidget(QLabel("method"), 1, 0)
+        cl.addWidget(self.method_combo, 1, 1)
+        cl.addWidget(QLabel("multi-start runs"), 2, 0)
+        cl.addWidget(self.starts_spin, 2, 1)
+        cl.addWidget(QLabel("start"), 3, 0)
+        cl.addWidget(self.start_edit, 3, 1)
+        btns = QHBoxLayout()
+        btns.addWidget(self.load_btn)
+        btns.addWidget(self.run_btn)
+        btns.addWidget(self.cancel_btn)
+        cl.addLayout(btns, 4, 0, 1, 2)
+        cl.addWidget(self.progress_label, 5, 0, 1, 2)
+        self.source_label = QLabel("")
+        self.source_label.setWordWrap(True)
+        cl.addWidget(self.source_label, 6, 0, 1, 2)
+        # results
+        self.table = QTableWidget(0, 5)
+        self.table.setHorizontalHeaderLabels(["parameter", "value ± std", "rel. std", "nominal", "identified"])
+        self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
+        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table.verticalHeader().setVisible(False)
+        self.summary = QLabel("")
+        self.summary.setWordWrap(True)
+        self.summary.setMinimumHeight(3 * self.summary.fontMetrics().height())
+        self.history_plot = plot("convergence history", ("iteration", ""), ("cost (χ²)", ""))
+        self.history_plot.setLogMode(y=True)
+        self.multi_plot = plot("multi-start: identified / nominal", ("start number", ""), ("ratio", ""))
+        self.multi_plot.addLegend(offset=(5, 5))
+        self.ident_plot = plot("identifiability: posterior rel. std per data set", ("parameter", ""),
+                               ("rel. std", ""))
+        self.ident_plot.setLogMode(y=True)
+        self.ident_plot.addLegend(offset=(5, 5))
+
+        left = QVBoxLayout()
+        left.addWidget(ctl)
+        left.addWidget(self.param_box)
+        left.addWidget(self.table, 1)
+        left.addWidget(self.summary)
+        lw = QWidget()
+        lw.setLayout(left)
+        lw.setMaximumWidth(520)
+        plots = QGridLayout()
+        plots.addWidget(self.history_plot, 0, 0)
+        plots.addWidget(self.ident_plot, 0, 1)
+        plots.addWidget(self.multi_plot, 1, 0, 1, 2)
+        body = QHBoxLayout()
+        body.addWidget(lw)
+        body.addLayout(plots, 1)
         lay = QVBoxLayout(self)
         lay.addWidget(self.banner)
-        lay.addStretch(1)
+        lay.addLayout(body, 1)
+
+        self.run_btn.clicked.connect(self.identify)
+        self.cancel_btn.clicked.connect(self.cancel)
+        self.load_btn.clicked.connect(self._load_dialog)
+        self.job = None
         self.reload()
 
-    def reload(self) -> None:
-        if backend("labid.identification") is None:
-            self.banner.warn("not available yet: the labid.identification workflow has not landed in this build")
+    # -- inputs ---------------------------------------------------------------------
+    def features(self) -> dict | None:
+        """The features to identify from: a loaded file, else what the run's analysis holds."""
+        if self.features_file_doc is not None:
+            return self.features_file_doc
+        return self.main.features()
 
+    def load_features_file(self, path: str) -> bool:
+        ident = backend("labid.identification", "load_features")
+        try:
+            doc = ident.load_features(path)
+        except UserError as e:
+            self.main.message(str(e), error=True)
+            return False
+        from pathlib import Path
+        spec = doc.get("specimen")
+        if isinstance(spec, str) and spec not in ("cfrp", "aluminium"):
+            p = Path(spec)
+            doc["specimen"] = str(p if p.is_absolute() else Path(path).parent / p)
+        self.features_file_doc = doc
+        self.source_label.setText(f"features: {path}")
+        self.reload()
+        return True
+
+    def _load_dialog(self) -> None:
+        p, _ = QFileDialog.getOpenFileName(self, "Features", "", "JSON (*.json)")
+        if p:
+            self.load_features_file(p)
+
+    def _set_params(self, names: tuple[str, ...], default: tuple[str, ...]) -> None:
+        if tuple(self.param_checks) == names:
+            return
+        default = tuple(getattr(self, "_pending_params", None) or default)
+        for cb in self.param_checks.values():
+            self.param_layout.removeWidget(cb)
+            cb.deleteLater()
+        self.param_checks = {}
+        for i, n in enumerate(names):
+            cb = QCheckBox(n)
+            cb.setChecked(n in default)
+            self.param_checks[n] = cb
+            self.param_layout.addWidget(cb, i // 4, i % 4)
+
+    def chosen_params(self) -> tuple[str, ...]:
+        return tuple(n for n, cb in self.param_checks.items() if cb.isChecked())
+
+    def data_choice(self) -> str:
+        return next(d for d, r in self.data_radios.items() if r.isChecked())
+
+    def reload(self) -> None:
+        ident = backend("labid.identification", "problem_from_features", "run")
+        self._ident = ident
+        if ident is None:
+            self.banner.warn("not available yet: the identification workflow (labid.identification) "
+                             "has not landed in this build")
+            self.run_btn.setEnabled(False)
+            return
+        doc = self.features()
+        if not doc:
+            self.banner.info("no measured features yet: acquire and analyse (Modes, Waves tabs), "
+                             "or load a features file")
+            self.run_btn.setEnabled(False)
+        else:
+            has = {"modal": bool(doc.get("modal")), "waves": bool(doc.get("waves"))}
+            self.data_radios["modal"].setEnabled(has["modal"])
+            self.data_radios["waves"].setEnabled(has["waves"])
+            self.data_radios["combined"].setEnabled(has["modal"] and has["waves"])
+            if not self.data_radios[self.data_choice()].isEnabled():
+                self.data_radios["modal" if has["modal"] else "waves"].setChecked(True)
+            self.banner.info(f"features: {'modal' if has['modal'] else ''}"
+                             f"{' + ' if all(has.values()) else ''}{'waves' if has['waves'] else ''}"
+                             f" · specimen {self._specimen_name(doc)}")
+            self.run_btn.setEnabled(self.job is None)
+            try:
+                spec = self.main.specimen_for_features(doc)
+                mat = next(iter(spec.laminate.materials.values()))
+                names = tuple(mat.param_names)
+                problem_default = ("E", "G") if mat.isotropic else ("E1", "E2", "G12", "G13", "G23")
+                self._set_params(names, problem_default)
+            except (UserError, StopIteration, AttributeError):
+                pass
+        try:
+            st = self.main.read_results("identification")
+        except Exception:  # noqa: BLE001 - an unreadable group just is not shown
+            st = None
+        if st and self.job is None:
+            self.show_result(st)
+
+    def _specimen_name(self, doc: dict) -> str:
+        s = doc.get("specimen")
+        return s if isinstance(s, str) else (s or {}).get("name", "inline")
+
+    # -- the job -------------------------------------------------------------------------
+    def identify(self) -> None:
+        ident = self._ident
+        doc = self.features()
+        if ident is None or not doc:
+            self.main.message("identification: no features to identify from", error=True)
+            return
+        data = self.data_choice()
+        names = self.chosen_params()
+        try:
+            spec = self.main.specimen_for_features(doc)
+        except UserError as e:
+            self.main.message(str(e), error=True)
+            return
+        if not names:
+            self.main.message("identification: choose at least one parameter", error=True)
+            return
+        method = self.method_combo.currentText()
+        try:
+            start = ident.parse_assignments(self.start_edit.text(), "start")
+        except UserError as e:
+            self.main.message(str(e), error=True)
+            return
+        n_starts = self.starts_spin.value()
+        doc = select_data(doc, data)
+
+        def work(progress, should_stop):
+            problem = ident.problem_from_features(doc, specimen=spec)
+            problem.blocks = cancellable(problem.blocks, should_stop, progress)
+            est = ident.run(problem, names, start or None, method=method)
+            out = est.to_dict()
+            out["data"] = data
+            out["specimen"] = problem.specimen.name
+            if n_starts:
+                st0 = {n: start.get(n, problem.nominal[n]) for n in est.names}
+                starts = ident.random_starts(st0, est.names, n_starts, seed=0)
+                runs = []
+                for i, st in enumerate(starts):
+                    if should_stop():
+                        raise Cancelled()
+                    runs += ident.multi_start(doc, [st], est.names, specimen=spec, method=method,
+                                              max_workers=1)
+                    progress(("start", i + 1, n_starts))
+                out["multi_start"] = runs
+            out["nominal"] = {n: float(problem.nominal[n]) for n in est.names}
+            return out
+
+        self.job = self.main.start_job("identification", work, self._done, on_progress=self._progress,
+                                       on_failed=self._failed)
+        if self.job is not None:
+            self.run_btn.setEnabled(False)
+            self.cancel_btn.setEnabled(True)
+            self.progress_label.setText("running…")
+
+    def cancel(self) -> None:
+        if self.job is not None:
+            self.job.cancel()
+            self.progress_label.setText("cancelling…")
+
+    def _progress(self, item) -> None:
+        if item[0] == "eval":
+            self.progress_label.setText(f"running: {item[1]} model evaluations")
+        elif item[0] == "start":
+            self.progress_label.setText(f"multi-start {item[1]}/{item[2]}")
+
+    def _finish(self) -> None:
+        self.job = None
+        self.run_btn.setEnabled(True)
+        self.cancel_btn.setEnabled(False)
+
+    def _failed(self, msg: str) -> None:
+        self._finish()
+        self.progress_label.setText(msg)
+
+    def _done(self, out: dict) -> None:
+        self._finish()
+        self.progress_label.setText(f"done in {out.get('seconds', 0):.2f} s "
+                                    f"({out.get('iterations')} iterations)")
+        self.main.store_results("identification", out)
+        self.show_result(out)
+        self.main.message("identification done" + ("" if out.get("converged") else " (NOT converged)"),
+                          error=not out.get("converged"))
+        self.main.modes.reload()
+        self.main.waves.reload()
+
+    # -- display -----------------------------------------------------------------------------
+    def show_result(self, out: dict) -> None:
+        self.result = out
+        params = out.get("parameters") or {}
+        nominal = out.get("nominal") or {}
+        idp = (out.get("identifiability") or {}).get("parameters") or {}
+        self.table.setRowCount(len(params))
+        for i, (n, p) in enumerate(params.items()):
+            unit, sc = _unit(n)
+            v, s = float(p["value"]), float(p["std"])
+            cells = [n, f"{v * sc:.4g} ± {s * sc:.2g} {unit}", f"{100 * s / abs(v):.2g} %" if v else "—",
+                     f"{float(nominal[n]) * sc:.4g}" if n in nominal else "—",
+                     "yes" if (idp.get(n) or {}).get("identified") else "no"]
+            for j, c in enumerate(cells):
+                item = QTableWidgetItem(c)
+                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                self.table.setItem(i, j, item)
+        res = out.get("residual") or {}
+        rs = ", ".join(f"{k} {v:.2e}" for k, v in res.items() if isinstance(v, (int, float)))
+        self.summary.setText(f"data {out.get('data', '?')} · method {out.get('method', '?')} · "
+                             f"converged {bool(out.get('converged'))} · residual {rs or '—'}")
+        # convergence history
+        self.history_plot.clear()
+        hist = out.get("history") or []
+        it = [h.get("iteration", i) for i, h in enumerate(hist) if isinstance(h.get("cost"), (int, float))]
+        cost = [max(float(h["cost"]), 1e-30) for h in hist if isinstance(h.get("cost"), (int, float))]
+        if cost:
+            self.history_plot.plot(it, cost, pen=pg.mkPen("#1f77b4", width=2), symbol="o", symbolSize=6,
+                                   symbolBrush="#1f77b4")
+        # multi-start scatter
+        self.multi_plot.clear()
+        runs = out.get("multi_start") or []
+        names = list(params)
+        if runs:
+            idx = np.arange(1, len(runs) + 1)
+            for k, n in enumerate(names):
+                nom = float(nominal.get(n, params[n]["value"]))
+                vals = np.array([float((r.get("values") or {}).get(n, np.nan)) for r in runs]) / nom
+                starts = np.array([float(r["start"].get(n, np.nan)) for r in runs]) / nom
+                c = COLORS[k % len(COLORS)]
+                self.multi_plot.plot(idx, starts, pen=None, symbol="x", symbolSize=7, symbolPen=pg.mkPen(c),
+                                     symbolBrush=None, name="starts (×, same colours)" if k == 0 else None)
+                self.multi_plot.plot(idx, vals, pen=None, symbol=SYMBOLS[k % len(SYMBOLS)], symbolSize=9,
+                                     symbolBrush=c, symbolPen=None, name=f"{n} identified")
+        # identifiability
+        self.ident_plot.clear()
+        blocks = (out.get("identifiability") or {}).get("blocks") or {}
+        ax = self.ident_plot.getAxis("bottom")
+        ax.setTicks([[(i, n) for i, n in enumerate(names)]])
+        thr = (out.get("identifiability") or {}).get("rel_threshold")
+        for k, (bname, b) in enumerate(blocks.items()):
+            rs_ = b.get("rel_std") or {}
+            y = np.array([max(float(rs_.get(n, np.nan)), 1e-12) for n in names])
+            x = np.arange(len(names)) + 0.12 * (k - (len(blocks) - 1) / 2)
+            c = COLORS[k % len(COLORS)]
+            self.ident_plot.plot(x, y, pen=None, symbol=SYMBOLS[k % len(SYMBOLS)], symbolSize=9,
+                                 symbolBrush=c, symbolPen=None, name=f"{bname} alone")
+        comb = np.array([max(float((idp.get(n) or {}).get("rel_std", np.nan)), 1e-12) for n in names])
+        if names:
+            self.ident_plot.plot(np.arange(len(names)), comb, pen=None, symbol="star", symbolSize=12,
+                                 symbolBrush="k", name="all data")
+        if isinstance(thr, (int, float)) and names:
+            self.ident_plot.addItem(pg.InfiniteLine(math.log10(thr), angle=0,
+                                                    pen=pg.mkPen("#d62728", style=Qt.DashLine)))
+
+    # -- session state ----------------------------------------------------------------------
     def state(self) -> dict:
-        return {}
+        return {"data": self.data_choice(), "params": list(self.chosen_params()),
+                "method": self.method_combo.currentText(), "starts": int(self.starts_spin.value()),
+                "start_values": self.start_edit.text()}
 
     def restore(self, st: dict) -> None:
-        pass
+        if st.get("data") in self.data_radios:
+            self.data_radios[st["data"]].setChecked(True)
+        if "params" in st:
+            self._pending_params = list(st["params"])
+            for n, cb in self.param_checks.items():
+                cb.setChecked(n in st["params"])
+        if st.get("method"):
+            self.method_combo.setCurrentText(st["method"])
+        self.start_edit.setText(st.get("start_values", ""))
+        if "starts" in st:
+            self.starts_spin.setValue(int(st["starts"]))

@@ -32,6 +32,7 @@ class MainWindow(QMainWindow):
         self.job: Job | None = None
         self._side_jobs: set[Job] = set()
         self.messages: list[tuple[str, bool]] = []
+        self._mem_results: dict[str, dict] = {}
 
         from .acquisition_view import AcquisitionView
         from .gap_view import GapView
@@ -177,6 +178,72 @@ class MainWindow(QMainWindow):
         for view in self.views.values():
             if hasattr(view, "reload"):
                 view.reload()
+
+    # -- results shared by the views ------------------------------------------------------------
+    def read_results(self, name: str):
+        """The results group ``name`` of the run file (JSON copy preferred), or None."""
+        if name in self._mem_results:
+            return self._mem_results[name]
+        if not self.run_path or not Path(self.run_path).exists():
+            return None
+        from ..report import decode_group
+        from ..runstore import RunStore
+        try:
+            with RunStore(self.run_path, "r") as store:
+                return decode_group(store.read_group(name))
+        except KeyError:
+            return None
+        except (UserError, OSError) as e:
+            self.message(str(e), error=True)
+            return None
+
+    def store_results(self, name: str, data: dict) -> bool:
+        """Write ``data`` under /results/<name> (structured + a JSON copy)."""
+        from ..cli import _to_jsonable
+        from ..runstore import RunStore
+        doc = _to_jsonable(data)
+        text = json.dumps(doc, allow_nan=True)
+        if not self.run_path:
+            self._mem_results[name] = json.loads(text)
+            self.message(f"{name}: kept in memory only (no run file)", error=True)
+            return False
+        self._mem_results.pop(name, None)
+        try:
+            with RunStore(self.run_path, "a") as store:
+                try:
+                    store.write_group(name, {**data, "json": text})
+                except (ValueError, TypeError):
+                    store.write_group(name, {"json": text})
+        except (UserError, OSError) as e:
+            self._mem_results[name] = json.loads(text)
+            self.message(f"{name}: not saved in the run file: {e}", error=True)
+            return False
+        return True
+
+    def features(self) -> dict | None:
+        """The measured features (CONTRACT section 2) of the run, or None."""
+        if not self.run_path or not Path(self.run_path).exists():
+            return None
+        from ..report import features_of, load_run
+        try:
+            doc = features_of(load_run(self.run_path, max_shots=0))
+        except (UserError, OSError):
+            return None
+        return doc or None
+
+    def specimen_for_features(self, doc: dict):
+        """The specimen a features document refers to (inline, path or built-in), else
+        the one of the run / the Setup tab."""
+        from ..specimen import load_specimen, specimen_from_dict
+        s = doc.get("specimen")
+        if isinstance(s, dict):
+            return specimen_from_dict(s, "features#specimen")
+        if isinstance(s, str) and s:
+            return load_specimen(s)
+        spec = self.setup.specimen()
+        if spec is None:
+            raise UserError("the specimen on the Setup tab is not valid; fix it first")
+        return spec
 
     def session_state(self) -> dict:
         st = {"tab": int(self.tabs.currentIndex())}
