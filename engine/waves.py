@@ -165,9 +165,8 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
         a maximum strictly inside it.
     first_fraction: the first local maximum reaching this fraction of the
         gate's maximum is the arrival (the direct wave, not a later echo).
-    noise_rms: RMS of |W| of the noise per frequency (``white_noise_level``);
-        if None, taken from the scalogram before the gate opens (if at least
-        one wavelet time-std of samples is there), else SNR is not checked.
+    noise_rms: RMS of |W| of the noise per frequency (``white_noise_level``
+        of the pre-trigger noise); if None the SNR is not checked (inf).
     min_snr_db: reject weaker arrivals. min_rel_db: reject frequencies whose
         peak is that far below the strongest frequency's.
     max_freq_offset: reject arrivals whose instantaneous frequency is more
@@ -199,8 +198,6 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
             continue
         a = A[i, k0:k1]
         m = a.max()
-        if noise_rms is None and k0 >= tstd[i] * fs_hz:
-            noise[i] = np.sqrt(np.mean(A[i, :k0] ** 2))
         if m <= 0:
             reason[i] = "no signal"
             continue
@@ -236,7 +233,8 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
         if reason[i]:
             valid[i] = False
     snr_lin = np.where(np.isfinite(snr), 10 ** (np.minimum(snr, 200) / 10), np.inf)
-    sigma = np.sqrt((tstd / np.sqrt(2 * snr_lin)) ** 2 + (1.0 / (fs_hz * np.sqrt(12)) / 10) ** 2)
+    with np.errstate(divide="ignore"):
+        sigma = np.sqrt((tstd / np.sqrt(2 * snr_lin)) ** 2 + (1.0 / (fs_hz * np.sqrt(12)) / 10) ** 2)
     return Arrivals(freqs, times, sigma, snr, finst, valid, tuple(reason), wavelet)
 
 
@@ -280,22 +278,33 @@ def velocity_gate(distance_m: float, v_min: float, v_max: float, source_time_s: 
 
 def expected_gate(distance_m: float, cg_expected: np.ndarray, *, margin: float = 0.25,
                   source_time_s: float | np.ndarray = 0.0, reflection_m: float | None = None,
-                  faster_cg: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per-frequency gate around an expected group velocity curve (m/s).
+                  faster_cg: np.ndarray | None = None, slower_cg: np.ndarray | None = None,
+                  time_std_s: np.ndarray | float = 0.0, clearance: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+    """Per-frequency gate (s) around an expected group velocity curve (m/s).
 
     Arrivals between ``distance / (cg (1 + margin))`` and ``distance / (cg (1 - margin))``
-    after the source; closed before half-way to the echo over ``reflection_m``
-    (shortest reflected path) and opened after half-way from a faster mode
-    (``faster_cg``, e.g. S0 when picking A0).
+    after the source. Closed ``clearance`` wavelet time-std (``time_std_s``,
+    from ``Wavelet.time_std_s``) before the earliest possible echo over
+    ``reflection_m`` (shortest reflected path), and opened as long after the
+    latest possible arrival of a faster mode (``faster_cg``, e.g. S0 when
+    picking A0), and before the earliest arrival of a slower mode
+    (``slower_cg``, e.g. A0 when picking S0), so that none can pull the
+    scalogram maximum (|psi| has an amplitude std of sqrt(2) time-std, hence
+    the default clearance of 3). Where they leave no room the gate is empty
+    and the frequency is rejected.
     """
     cg = np.asarray(cg_expected, float)
+    ts = np.asarray(time_std_s, float)
     lo = source_time_s + distance_m / (cg * (1 + margin))
     hi = source_time_s + distance_m / (cg * (1 - margin))
     if reflection_m is not None:
-        hi = np.minimum(hi, source_time_s + 0.5 * (distance_m + reflection_m) / cg)
+        hi = np.minimum(hi, source_time_s + reflection_m / (cg * (1 + margin)) - clearance * ts)
     if faster_cg is not None:
         fast = np.asarray(faster_cg, float)
-        lo = np.maximum(lo, source_time_s + 0.5 * (distance_m / fast + distance_m / cg))
+        lo = np.maximum(lo, source_time_s + distance_m / (fast * (1 - margin)) + clearance * ts)
+    if slower_cg is not None:
+        slow = np.asarray(slower_cg, float)
+        hi = np.minimum(hi, source_time_s + distance_m / (slow * (1 + margin)) - clearance * ts)
     return lo, hi
 
 
