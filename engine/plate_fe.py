@@ -486,6 +486,7 @@ class _Pattern:
     type_scales: np.ndarray     # (n_types, 6) s_pq of each type
     m_mask: np.ndarray          # (nnz,) bool: positions the mass matrix can fill
     m_indptr: np.ndarray        # CSR of the mass sub-pattern
+    cross: np.ndarray           # (nnz,) bool: membrane (u0, v0) x bending (w0, bx, by) positions
 
     @classmethod
     def build(cls, mesh: Mesh) -> "_Pattern":
@@ -509,8 +510,9 @@ class _Pattern:
         pair = np.minimum(fr, fc) * 10 + np.maximum(fr, fc)
         m_mask = (fr == fc) | (pair == 3) | (pair == 14)  # same field, u-bx, v-by
         m_indptr = np.concatenate([[0], np.cumsum(np.add.reduceat(m_mask, indptr[:-1]))])
+        cross = (fr < 2) != (fc < 2)
         return cls(indptr, c.astype(np.int32), scatter, inv.reshape(ne, 6400), etype,
-                   _combo_scales(h[first]), m_mask, m_indptr.astype(np.int32))
+                   _combo_scales(h[first]), m_mask, m_indptr.astype(np.int32), cross)
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         n = len(self.indptr) - 1
@@ -597,6 +599,8 @@ class PlateModel:
         nnz = self._pat.indices.size
         self._k_add = np.zeros(nnz) if k_add is None else k_add
         self._m_add = np.zeros(nnz) if m_add is None else m_add
+        cross = self._pat.cross
+        self._add_cross = bool(np.any(self._k_add[cross] != 0) or np.any(self._m_add[cross] != 0))
         self._cache: dict = {}
 
     # -- construction ---------------------------------------------------
@@ -739,7 +743,7 @@ class PlateModel:
         if sigma is None:
             sigma = -1e-3 * self._omega2_scale(c, inert)
         h = self.laminate.thickness
-        coupled = (np.abs(c[6:12]).max() > 1e-10 * np.abs(c[:6]).max() * h
+        coupled = (self._add_cross or np.abs(c[6:12]).max() > 1e-10 * np.abs(c[:6]).max() * h
                    or abs(inert[1]) > 1e-10 * inert[0] * h)
         if coupled:
             lam, vec = self._block("all").eig(kd, md, n_modes + 6 + _SPARE, sigma, n)
