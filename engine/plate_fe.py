@@ -589,7 +589,7 @@ class PlateModel:
     """Free-free laminated Mindlin plate: precomputed parts, solve per parameter set."""
 
     def __init__(self, laminate: Laminate, mesh: Mesh, shear_factor: float = 5.0 / 6.0,
-                 *, _parts=None, k_add=None, m_add=None):
+                 *, _parts=None, k_add=None, m_add=None, _cache=None):
         self.laminate, self.mesh, self.shear_factor = laminate, mesh, shear_factor
         if _parts is None:
             Kref, Mref = _reference_matrices()
@@ -601,7 +601,7 @@ class PlateModel:
         self._m_add = np.zeros(nnz) if m_add is None else m_add
         cross = self._pat.cross
         self._add_cross = bool(np.any(self._k_add[cross] != 0) or np.any(self._m_add[cross] != 0))
-        self._cache: dict = {}
+        self._cache: dict = {} if _cache is None else _cache  # mesh-only data, shared by derived models
 
     # -- construction ---------------------------------------------------
     @classmethod
@@ -630,7 +630,7 @@ class PlateModel:
         return PlateModel(self.laminate, self.mesh, self.shear_factor,
                           _parts=(self._Ke, self._Me, self._pat, self._maps),
                           k_add=self._k_add if k_add is None else k_add,
-                          m_add=self._m_add if m_add is None else m_add)
+                          m_add=self._m_add if m_add is None else m_add, _cache=self._cache)
 
     def with_point_masses(self, masses: Iterable[Sequence[float]]) -> "PlateModel":
         """Add point masses (x, y, m) or (x, y, m, Ix, Iy): m in kg on u0, v0, w0;
