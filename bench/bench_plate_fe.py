@@ -68,7 +68,8 @@ def study(spec) -> list[str]:
         f = model.solve(10).frequencies_hz
         err = 100 * np.max(np.abs(f / ref - 1))
         tag = " **(default)**" if mesh == default else ""
-        rows.append(f"| {name}{tag} | {mesh.n_dof} | {err:.4f} | {f[0]:.3f} | {f[9]:.3f} | {best * 1e3:.0f} |")
+        rows.append(f"| {name}{tag} | {mesh.n_dof} | {err:.4f} | {f[0]:.3f} | {f[9]:.3f} "
+                    f"| {best * 1e3:.0f} |")
     rows.append("")
     rows.append("Reference frequencies (Hz): " + ", ".join(f"{v:.3f}" for v in ref))
     return rows

@@ -48,7 +48,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .laminate import ABDH, Laminate, Material, PhysicsError, abdh, transform_inplane, transform_shear
+from .laminate import ABDH, Laminate, Material, transform_inplane, transform_shear
 
 __all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "coefficients_from_abdh",
            "DEFAULT_ELEMENTS", "EDGE_LAYER", "COEF_NAMES", "FEError"]

@@ -21,13 +21,14 @@ from .cli import add_json_option
 from .errors import UserError
 
 _GRID_RE = re.compile(r"^\s*(\d+)\s*[xX*]\s*(\d+)\s*$")
-MAX_ELEMENTS = 60
+MAX_ELEMENTS = 60  # per side, for --mesh
 
 
 def register(sub) -> None:
     p = sub.add_parser("modes", help="free-free natural frequencies of the plate",
                        description=__doc__.splitlines()[0])
-    p.add_argument("spec", metavar="SPEC.toml", help="specimen file, or a built-in name ('cfrp', 'aluminium')")
+    p.add_argument("spec", metavar="SPEC.toml",
+                   help="specimen file, or a built-in name ('cfrp', 'aluminium')")
     p.add_argument("--n", type=int, default=10, metavar="N", help="number of elastic modes (default 10)")
     p.add_argument("--mesh", default=None, metavar="NxM",
                    help="uniform mesh of N x M 16-node elements (default: the converged graded mesh)")
