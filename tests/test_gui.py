@@ -200,3 +200,40 @@ def test_identification_can_be_cancelled(win, qtbot, features_file):
     qtbot.waitUntil(lambda: view.job is None, timeout=30_000)
     assert view.result is None
     assert win.messages[-1][0].endswith("cancelled")
+
+
+@pytest.mark.slow
+def test_gap_view_diagnoses_an_injected_sensor_mass(win, qtbot, tmp_path):
+    """Features synthesised with 5 g extra at each accelerometer (not in the nominal model):
+    the diagnosis must name sensor_mass (outside truth: what was injected)."""
+    ident = pytest.importorskip("labid.identification")
+    pytest.importorskip("labid.diagnosis")
+    from engine.plate_fe import PlateModel
+    from labid.specimen import load_specimen
+    spec = load_specimen("cfrp")
+    acc = [(0.02, 0.02), (0.31, 0.02), (0.23, 0.29)]
+    model = PlateModel.build(spec.laminate, spec.length, spec.width).with_point_masses(
+        [(x, y, 0.005) for x, y in acc])
+    doc = ident.synthetic_features("cfrp", n_modes=8, waves=(), modal_model=model)
+    doc["rig"] = {"temperature_c": 23.0,
+                  "accelerometers": [{"x": x, "y": y, "mass_kg": 0.0} for x, y in acc],
+                  "supports": [{"x": 0.03, "y": 0.33}, {"x": 0.30, "y": 0.33}]}
+    p = tmp_path / "features.json"
+    p.write_text(json.dumps(doc))
+    run = tmp_path / "gap.h5"
+    RunStore(run, "a").close()
+    win.set_run_path(str(run))
+    assert win.identification.load_features_file(str(p))
+    win.gap.reload()
+    win.tabs.setCurrentIndex(5)
+    qtbot.mouseClick(win.gap.run_btn, Qt.LeftButton)
+    qtbot.waitUntil(lambda: win.gap.job is None, timeout=60_000)
+    res = win.gap.result
+    assert res is not None, win.messages[-1]
+    assert res["verdict"] == "sensor_mass"
+    assert res["effects"][0]["magnitude"] == pytest.approx(0.005, rel=0.2)
+    assert win.gap.table.item(0, 1).text() == "sensor_mass"
+    shot(win, "gap")
+    with RunStore(run, "r") as st:
+        stored = json.loads(st.read_group("diagnosis")["json"])
+    assert stored["verdict"] == "sensor_mass"
