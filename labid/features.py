@@ -1,0 +1,245 @@
+"""The measured-features file (JSON, CONTRACT section 2): read, validate, write.
+
+The bridge between processing (``labid analyze``) and identification /
+diagnosis. Any of ``modal``, ``waves``, ``rig`` may be absent. ``specimen`` is
+a path relative to the JSON file (or a built-in name) or the specimen table
+inline. JSON has no NaN: a velocity that could not be measured is ``null``
+(read back as NaN). Every mistake raises ``UserError`` naming the file, the
+key (``waves[0].frequency_hz[3]``), the value and what was expected.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any, Mapping
+
+from .errors import UserError
+from .specimen import BUILTIN, Specimen, load_specimen, specimen_from_dict
+
+__all__ = ["validate_features", "read_features", "write_features", "features_text",
+           "specimen_of", "MODE_LABEL"]
+
+MODE_LABEL = re.compile(r"^(A|S|SH)\d+$")
+
+
+def _is_num(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _number(v: Any, key: str, src: str, *, positive=False, nonneg=False, null_ok=False) -> float:
+    if v is None and null_ok:
+        return math.nan
+    if not _is_num(v) or not math.isfinite(v):
+        what = "a finite number" + (" or null" if null_ok else "")
+        raise UserError(f"value {v!r}: expected {what}", file=src, key=key)
+    if positive and not v > 0:
+        raise UserError(f"value {v!r}: expected a positive number", file=src, key=key)
+    if nonneg and v < 0:
+        raise UserError(f"value {v!r}: expected a number >= 0", file=src, key=key)
+    return float(v)
+
+
+def _numbers(tab: Mapping, key: str, where: str, src: str, *, n: int | None = None, required=True,
+             **kw) -> list[float] | None:
+    full = where + key
+    if key not in tab:
+        if required:
+            raise UserError("missing key; expected a list of numbers", file=src, key=full)
+        return None
+    v = tab[key]
+    if not isinstance(v, list):
+        raise UserError(f"value {v!r}: expected a list of numbers", file=src, key=full)
+    if n is not None and len(v) != n:
+        raise UserError(f"{len(v)} values: expected {n}, one per frequency", file=src, key=full)
+    return [_number(x, f"{full}[{i}]", src, **kw) for i, x in enumerate(v)]
+
+
+def _object(v: Any, key: str, src: str) -> Mapping:
+    if not isinstance(v, Mapping):
+        raise UserError(f"value {v!r}: expected an object", file=src, key=key)
+    return v
+
+
+def _modal(m: Any, src: str) -> dict:
+    m = _object(m, "modal", src)
+    out = dict(m)
+    f = _numbers(m, "frequencies_hz", "modal.", src, positive=True)
+    out["frequencies_hz"] = f
+    s = _numbers(m, "sigma_hz", "modal.", src, n=len(f), required=False, positive=True)
+    if s is not None:
+        out["sigma_hz"] = s
+    if m.get("mode_shapes") is not None:
+        ms = _object(m["mode_shapes"], "modal.mode_shapes", src)
+        pts = ms.get("points")
+        if not isinstance(pts, list) or not pts:
+            raise UserError(f"value {pts!r}: expected a non-empty list of [x, y] points in m",
+                            file=src, key="modal.mode_shapes.points")
+        points = []
+        for j, p in enumerate(pts):
+            key = f"modal.mode_shapes.points[{j}]"
+            if not isinstance(p, list) or len(p) != 2:
+                raise UserError(f"value {p!r}: expected [x, y] in m", file=src, key=key)
+            points.append([_number(p[0], key + "[0]", src), _number(p[1], key + "[1]", src)])
+        vals = ms.get("values")
+        if not isinstance(vals, list) or len(vals) != len(f):
+            raise UserError(f"expected a list of {len(f)} rows (one per frequency) of {len(points)} values",
+                            file=src, key="modal.mode_shapes.values")
+        rows = []
+        for i, row in enumerate(vals):
+            key = f"modal.mode_shapes.values[{i}]"
+            if not isinstance(row, list) or len(row) != len(points):
+                raise UserError(f"value {row!r}: expected {len(points)} values, one per point", file=src, key=key)
+            rows.append([_number(x, f"{key}[{j}]", src) for j, x in enumerate(row)])
+        out["mode_shapes"] = {**ms, "points": points, "values": rows}
+    return out
+
+
+def _waves(w: Any, src: str) -> list[dict]:
+    if not isinstance(w, list):
+        raise UserError(f"value {w!r}: expected a list of wave curves", file=src, key="waves")
+    out = []
+    for i, c in enumerate(w):
+        where = f"waves[{i}]."
+        c = _object(c, f"waves[{i}]", src)
+        mode = c.get("mode", "A0")
+        if not isinstance(mode, str) or not MODE_LABEL.match(mode):
+            raise UserError(f"value {mode!r}: expected a mode label such as 'A0', 'S0', 'SH0', 'A1'",
+                            file=src, key=where + "mode")
+        d = _number(c.get("direction_deg", 0.0), where + "direction_deg", src)
+        f = _numbers(c, "frequency_hz", where, src, positive=True)
+        v = _numbers(c, "group_velocity_m_s", where, src, n=len(f), positive=True, null_ok=True)
+        s = _numbers(c, "sigma_m_s", where, src, n=len(f), required=False, positive=True, null_ok=True)
+        item = {**c, "mode": mode, "direction_deg": d, "frequency_hz": f, "group_velocity_m_s": v}
+        if s is not None:
+            item["sigma_m_s"] = s
+        out.append(item)
+    return out
+
+
+def _rig(r: Any, src: str) -> dict:
+    r = _object(r, "rig", src)
+    out = dict(r)
+    if "temperature_c" in r:
+        out["temperature_c"] = _number(r["temperature_c"], "rig.temperature_c", src)
+    for key, fields in (("accelerometers", ("x", "y", "mass_kg")), ("supports", ("x", "y"))):
+        if key not in r:
+            continue
+        lst = r[key]
+        if not isinstance(lst, list):
+            raise UserError(f"value {lst!r}: expected a list of objects", file=src, key=f"rig.{key}")
+        items = []
+        for i, a in enumerate(lst):
+            a = _object(a, f"rig.{key}[{i}]", src)
+            item = dict(a)
+            for fld in fields:
+                if fld == "mass_kg" and fld not in a:
+                    continue
+                if fld not in a:
+                    raise UserError("missing key; expected a number", file=src, key=f"rig.{key}[{i}].{fld}")
+                item[fld] = _number(a[fld], f"rig.{key}[{i}].{fld}", src, nonneg=(fld == "mass_kg"))
+            items.append(item)
+        out[key] = items
+    if "wave_path_m" in r:
+        out["wave_path_m"] = _number(r["wave_path_m"], "rig.wave_path_m", src, positive=True)
+    if "sensor_length_m" in r:
+        out["sensor_length_m"] = _number(r["sensor_length_m"], "rig.sensor_length_m", src, nonneg=True)
+    return out
+
+
+def validate_features(doc: Any, src: str = "<features>") -> dict:
+    """A checked copy of a features document (numbers as floats, null velocities as NaN).
+
+    Unknown top-level keys are kept (the contract may be extended).
+    """
+    doc = _object(doc, "(top level)", src)
+    out = dict(doc)
+    if "specimen" in doc and doc["specimen"] is not None:
+        s = doc["specimen"]
+        if isinstance(s, str):
+            if not s:
+                raise UserError("empty path; expected a specimen file path or table", file=src, key="specimen")
+        elif isinstance(s, Mapping):
+            specimen_from_dict(s, f"{src}#specimen")  # validates, raises UserError
+        else:
+            raise UserError(f"value {s!r}: expected a specimen file path or an inline table",
+                            file=src, key="specimen")
+    if doc.get("modal") is not None:
+        out["modal"] = _modal(doc["modal"], src)
+    if doc.get("waves") is not None:
+        out["waves"] = _waves(doc["waves"], src)
+    if doc.get("rig") is not None:
+        out["rig"] = _rig(doc["rig"], src)
+    return out
+
+
+def read_features(path: str | Path) -> dict:
+    """Read and validate a features JSON file."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except FileNotFoundError:
+        raise UserError("file not found; expected a features JSON file", file=str(p)) from None
+    except OSError as e:
+        raise UserError(f"cannot read: {e.strerror}", file=str(p)) from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise UserError(f"not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})", file=str(p)) from None
+    return validate_features(doc, str(p))
+
+
+def specimen_of(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>") -> Specimen:
+    """The specimen a features document refers to (path relative to ``base_dir``, built-in name, or table)."""
+    s = doc.get("specimen")
+    if s is None:
+        raise UserError("missing key; expected a specimen file path or table", file=src, key="specimen")
+    if isinstance(s, Mapping):
+        return specimen_from_dict(s, f"{src}#specimen")
+    p = Path(s)
+    full = p if p.is_absolute() else Path(base_dir) / p
+    if s in BUILTIN and not full.exists():
+        return load_specimen(s)
+    return load_specimen(full)
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, Mapping):
+        return {str(k): _jsonable(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    if hasattr(v, "tolist"):
+        return _jsonable(v.tolist())
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, Path):
+        return str(v)
+    return v
+
+
+def features_text(doc: Mapping, src: str = "<features>") -> str:
+    """Validated JSON text of a features document (NaN written as null)."""
+    clean = _jsonable(doc)
+    validate_features(clean, src)
+    return json.dumps(clean, indent=2, allow_nan=False) + "\n"
+
+
+def write_features(path: str | Path, doc: Mapping, *, specimen_path: str | Path | None = None) -> dict:
+    """Validate and write a features file; returns the document written.
+
+    ``specimen_path`` (a file path relative to the current directory, or
+    absolute) is stored relative to the JSON file's directory.
+    """
+    p = Path(path)
+    out = dict(doc)
+    if specimen_path is not None:
+        sp = str(specimen_path)
+        out["specimen"] = sp if sp in BUILTIN else os.path.relpath(Path(sp).resolve(), p.resolve().parent)
+    text = features_text(out, str(p))
+    try:
+        p.write_text(text)
+    except OSError as e:
+        raise UserError(f"cannot write: {e.strerror}", file=str(p)) from None
+    return json.loads(text)
