@@ -1,0 +1,188 @@
+"""Blind cases for the gap diagnoser: features with a hidden effect, magnitude and noise.
+
+``draw_case(seed)`` draws, from the seed alone, the true constants (nominal CFRP
++-5 %, nu12 +-3 %), one condition (clean, a library effect, or an effect outside
+the library) with a physically typical magnitude (``RANGES``), and the noise,
+and returns the features (CONTRACT section 2, specimen inline as the nominal
+table) plus the hidden truth. The features are produced by the forward models
+directly (``engine.gap_forward.ForwardModel``); with ``outside=True`` by a
+different discretisation than the diagnoser's (finer plate mesh, higher SAFE
+order), so a diagnoser tuned to its own simulator shows it.
+
+Out-of-library conditions:
+  ply_angle   the whole layup turned by +-2..5 deg in the plate plane;
+  soft_patch  a local stiffness loss of 30..60 % over a 60 mm x 60 mm square
+              (the plate elements there lose that fraction of their stiffness;
+              the wave path is assumed to avoid it).
+
+Noise: modal sigma = 3e-4 f, mode shapes 2 % of the largest value, group
+velocities sigma = 0.2 % of c_g; Gaussian.
+"""
+from __future__ import annotations
+
+import copy
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+from engine.gap_forward import (EFFECTS, ForwardModel, GapProblem, ModalData, RigLayout,
+                                WaveData)
+from engine.laminate import Laminate, Ply
+
+LIBRARY = tuple(EFFECTS)
+OUT_OF_LIBRARY = ("ply_angle", "soft_patch")
+KINDS = ("clean",) + LIBRARY + OUT_OF_LIBRARY
+
+#: physically typical magnitudes: (low, high, signed) in the effect's unit
+RANGES = {
+    "sensor_mass": (0.001, 0.006, False),        # kg, IEPE accelerometers 1-6 g
+    "support_stiffness": (100.0, 1000.0, False),  # N/m, wire/rubber suspension
+    "temperature": (5.0, 15.0, True),            # K away from the constants' temperature
+    "thickness": (0.01, 0.04, True),             # relative, 1-4 % nominal vs real
+    "timing_offset": (0.5e-6, 3e-6, True),       # s, trigger / coupling delay
+    "path_length": (0.003, 0.010, True),         # m, source/sensor placement
+    "sensor_aperture": (0.010, 0.016, False),    # m, true length (nominal 5 mm)
+    "viscoelastic": (0.005, 0.03, False),        # loss factor of epoxy composites
+    "ply_angle": (2.0, 5.0, True),               # deg, whole layup
+    "soft_patch": (0.3, 0.6, False),             # fraction of stiffness lost locally
+}
+
+ACCELEROMETERS = ((0.02, 0.02), (0.31, 0.02), (0.02, 0.31), (0.31, 0.31))
+SUPPORTS = ((0.03, 0.33), (0.30, 0.33))
+WAVE_PATH_M = 0.25
+SENSOR_LENGTH_M = 0.005
+MODAL_REL_SIGMA = 3e-4
+WAVE_REL_SIGMA = 2e-3
+N_MODES = 10
+WAVE_SETS = (("A0", 0.0, 10), ("A0", 45.0, 10), ("A0", 90.0, 10), ("S0", 0.0, 8), ("S0", 90.0, 8))
+F_WAVES = (20e3, 200e3)
+
+
+@dataclass(frozen=True)
+class BlindCase:
+    """A generated case: the features the diagnoser sees and the hidden truth."""
+
+    seed: int
+    kind: str
+    magnitude: float
+    unit: str
+    features: dict
+    truth_constants: dict
+    outside: bool
+    noiseless: np.ndarray     # noise-free features (modal Hz then each wave set), for scoring
+
+
+def nominal_specimen_table() -> dict:
+    """The nominal CFRP specimen table (labid/data/cfrp_12ply.toml)."""
+    text = resources.files("labid.data").joinpath("cfrp_12ply.toml").read_text()
+    return tomllib.loads(text)
+
+
+def _laminate(table: dict) -> tuple[Laminate, float, float]:
+    from labid.specimen import specimen_from_dict
+    s = specimen_from_dict(table)
+    return s.laminate, s.length, s.width
+
+
+def _shape_points() -> np.ndarray:
+    g = np.linspace(0.02, 0.31, 5)
+    X, Y = np.meshgrid(g, g)
+    return np.column_stack([X.ravel(), Y.ravel()])
+
+
+def _soft_patch_model(model, params, x0: float, y0: float, size: float, loss: float):
+    """PlateModel whose elements with centres inside the square lose ``loss`` of their stiffness.
+
+    Uses the model's precomputed parts (element stiffness = combination of the
+    unit element matrices), a test-generator hook outside the diagnoser's library.
+    """
+    c, _ = model.coefficients(params)
+    pat = model._pat
+    Kc = np.tensordot(c, model._Ke, axes=(0, 1)).reshape(6, 6400)
+    Ke_type = pat.type_scales @ Kc                       # (n_types, 6400)
+    xe, ye = model.mesh.xe, model.mesh.ye
+    cx = 0.5 * (xe[1:] + xe[:-1])
+    cy = 0.5 * (ye[1:] + ye[:-1])
+    add = model._k_add.copy()
+    for ey in range(model.mesh.ny):
+        for ex in range(model.mesh.nx):
+            if abs(cx[ex] - x0) <= size / 2 and abs(cy[ey] - y0) <= size / 2:
+                e = ey * model.mesh.nx + ex
+                np.add.at(add, pat.elem_pos[e], -loss * Ke_type[pat.elem_type[e]])
+    return model._derived(k_add=add)
+
+
+def draw_case(seed: int, kind: str | None = None, outside: bool = False) -> BlindCase:
+    """Draw a case from ``seed`` (``kind`` forces the condition; see KINDS)."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 7]))
+    kind = kind or KINDS[int(rng.integers(len(KINDS)))]
+    if kind not in KINDS:
+        raise ValueError(f"kind {kind!r}: expected one of {KINDS}")
+    table = nominal_specimen_table()
+    lam, length, width = _laminate(table)
+    mat = next(iter(lam.materials.values()))
+    nominal = {k: v for k, v in mat.params().items() if k != "density"}
+    truth = {k: v * (1.0 + (0.03 if k == "nu12" else 0.05) * rng.standard_normal())
+             for k, v in nominal.items()}
+    mag = 0.0
+    if kind != "clean":
+        lo, hi, signed = RANGES[kind]
+        mag = float(rng.uniform(lo, hi)) * (float(rng.choice([-1.0, 1.0])) if signed else 1.0)
+    rig = RigLayout(ACCELEROMETERS, SUPPORTS, WAVE_PATH_M, SENSOR_LENGTH_M, 23.0)
+    waves = tuple(WaveData(m, d, np.geomspace(*F_WAVES, n), np.ones(n), np.ones(n))
+                  for m, d, n in WAVE_SETS)
+    true_lam = lam
+    if kind == "ply_angle":
+        true_lam = Laminate(tuple(Ply(p.material, p.angle_deg + mag, p.thickness) for p in lam.plies))
+    problem = GapProblem(true_lam, length, width, rig,
+                         ModalData(np.ones(N_MODES), np.ones(N_MODES)), waves)
+    mesh = None
+    if outside:
+        from engine.plate_fe import Mesh
+        mesh = Mesh.default(length, width, lam.thickness, n=9)
+    plate_model = None
+    if kind == "soft_patch" or outside:
+        from engine.plate_fe import PlateModel
+        plate_model = PlateModel.build(true_lam, length, width, mesh)
+        if kind == "soft_patch":
+            x0, y0 = rng.uniform(0.08, 0.25, size=2)
+            plate_model = _soft_patch_model(plate_model, truth, x0, y0, 0.06, mag)
+    safe_order = None
+    if outside:
+        from engine.safe import default_discretisation
+        safe_order = default_discretisation(lam, F_WAVES[1] * 1.5)[0] + 2
+    fw = ForwardModel(problem, mesh=mesh, safe_order=safe_order, plate_model=plate_model)
+    effects = {kind: mag} if kind in LIBRARY else {}
+    y = fw.predict(truth, effects)
+    # mode shapes of the true (perturbed) plate at the measurement points
+    mf = fw.modal_forward(effects.get("sensor_mass", 0.0), effects.get("support_stiffness", 0.0),
+                          effects.get("thickness", 0.0))
+    modes, idx = mf._solve(truth)
+    pts = _shape_points()
+    shapes = mf.model.shapes_at(modes, pts)[idx]
+    shapes = shapes / np.max(np.abs(shapes), axis=1, keepdims=True)
+    shapes = shapes + 0.02 * rng.standard_normal(shapes.shape)
+    sig = np.concatenate([MODAL_REL_SIGMA * y[:N_MODES], WAVE_REL_SIGMA * y[N_MODES:]])
+    obs = y + sig * rng.standard_normal(y.shape)
+    feats = {
+        "specimen": copy.deepcopy(table),
+        "modal": {"frequencies_hz": obs[:N_MODES].tolist(), "sigma_hz": sig[:N_MODES].tolist(),
+                  "mode_shapes": {"points": pts.tolist(), "values": shapes.tolist()}},
+        "waves": [],
+        "rig": {"temperature_c": 23.0,
+                "accelerometers": [{"x": x, "y": y_, "mass_kg": 0.002} for x, y_ in ACCELEROMETERS],
+                "supports": [{"x": x, "y": y_} for x, y_ in SUPPORTS],
+                "wave_path_m": WAVE_PATH_M, "sensor_length_m": SENSOR_LENGTH_M},
+    }
+    i = N_MODES
+    for w in waves:
+        n = len(w.frequency_hz)
+        feats["waves"].append({"mode": w.mode, "direction_deg": w.direction_deg,
+                               "frequency_hz": np.asarray(w.frequency_hz).tolist(),
+                               "group_velocity_m_s": obs[i:i + n].tolist(),
+                               "sigma_m_s": sig[i:i + n].tolist()})
+        i += n
+    unit = EFFECTS[kind].unit if kind in EFFECTS else ("deg" if kind == "ply_angle" else "1")
+    return BlindCase(int(seed), kind, mag, unit, feats, truth, bool(outside), y)
