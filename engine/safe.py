@@ -72,6 +72,7 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.linalg as sla
+from numpy.polynomial import chebyshev as npcheb
 from numpy.polynomial import legendre as npleg
 
 from .laminate import Laminate, stiffness_3d
@@ -609,31 +610,27 @@ def _cheb_eval(c: np.ndarray, k: np.ndarray, kmax: float) -> np.ndarray:
     return np.polynomial.chebyshev.chebval(x, c)
 
 
+def _chop(c: np.ndarray, rel: float = 1e-16) -> np.ndarray:
+    """Drop trailing Chebyshev coefficients below rel * max (axis 0)."""
+    a = np.abs(c) if c.ndim == 1 else np.max(np.abs(c), axis=tuple(range(1, c.ndim)))
+    big = np.nonzero(a > rel * a.max())[0]
+    return c[: big[-1] + 1] if big.size else c[:1]
+
+
 def _cheb_vals(c: np.ndarray, k: np.ndarray, kmax: float, deriv: bool = False):
-    """Series c (n+1,) at k; with deriv also d/dk (trigonometric form, vectorised)."""
+    """Series c (n+1,) at k (Clenshaw); with deriv also d/dk."""
     x = np.clip(1.0 - 2.0 * k / kmax, -1.0, 1.0)
-    th = np.arccos(x)
-    m = np.arange(c.shape[0])
-    T = np.cos(np.multiply.outer(th, m))
-    v = T @ c
+    v = npcheb.chebval(x, c)
     if not deriv:
         return v
-    s = np.sin(th)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dT = m * np.sin(np.multiply.outer(th, m)) / s[..., None]
-    # endpoints (sin th = 0): dT_m/dx = m^2 at x = 1, (-1)^(m+1) m^2 at x = -1
-    end = np.abs(s) < 1e-12
-    if np.any(end):
-        sgn = np.where(x[end] > 0, 1.0, -1.0)
-        dT[end] = (m ** 2) * np.where(sgn[:, None] > 0, 1.0, (-1.0) ** (m + 1))
-    return v, (dT @ c) * (-2.0 / kmax)
+    return v, npcheb.chebval(x, npcheb.chebder(c)) * (-2.0 / kmax)
 
 
 def _roots_from_series(br: _Branches, omega: np.ndarray, j: int, n_dense: int = 256,
                        n_iter: int = 12):
     """Largest-root k of lambda_j(k) = omega^2 for each omega, with lambda_j'(k). NaN if none."""
     kmax = br.kmax
-    c = br.lam[:, j]
+    c = _chop(br.lam[:, j])
     kd = np.linspace(0.0, kmax, n_dense)
     L, D = _cheb_vals(c, kd, kmax, deriv=True)
     w2 = omega ** 2
@@ -643,6 +640,7 @@ def _roots_from_series(br: _Branches, omega: np.ndarray, j: int, n_dense: int = 
     lo, hi = kd[n], kd[n + 1]
     k = _hermite_root(lo, hi, L[n], L[n + 1], D[n], D[n + 1], w2, n_iter=4)
     act = np.nonzero(has)[0]
+    noise = 1e-14 * float(np.max(np.abs(L)))
     for _ in range(n_iter):
         if len(act) == 0:
             break
@@ -651,12 +649,47 @@ def _roots_from_series(br: _Branches, omega: np.ndarray, j: int, n_dense: int = 
         kn = k[act] - f / np.where(d > 0, d, np.inf)
         # stay in the bracket of the dense grid (the start is already close)
         kn = np.clip(kn, lo[act], hi[act])
-        done = np.abs(kn - k[act]) <= 1e-12 * kn
+        done = (np.abs(kn - k[act]) <= 1e-12 * kn) | (np.abs(f) <= noise)
         k[act] = kn
         act = act[~done]
-    dl = _cheb_vals(br.dlam[:, j], k, kmax)
+    dl = _cheb_vals(_chop(br.dlam[:, j]), k, kmax)
     k = np.where(has, k, np.nan)
     return k, np.where(has, dl, np.nan)
+
+
+def _dense_table(br: _Branches, j: int, n: int = 4096):
+    """Branch j on n+1 Chebyshev-Lobatto wavenumbers (ascending) via one DCT per series.
+
+    Returns (k, lam, dlam, extra) where extra has the surface products if present.
+    """
+    from scipy.fft import dct
+
+    def vals(c):
+        c = c[:n + 1]
+        b = np.zeros((n + 1,) + c.shape[1:])
+        b[:c.shape[0]] = c
+        b[1:n] *= 0.5
+        return dct(b, type=1, axis=0)
+
+    x = np.cos(np.pi * np.arange(n + 1) / n)
+    k = br.kmax * (1.0 - x) / 2.0
+    extra = {name: vals(c[..., j]) for name, c in br.extra.items()}
+    return k, vals(br.lam[:, j]), vals(br.dlam[:, j]), extra
+
+
+def _invert_table(k, lam, dlam, omega):
+    """Largest root of lam(k) = omega^2 from a dense table (cubic Hermite in each interval).
+
+    Returns (k_root, interval index i, fraction t) with NaN where there is no root.
+    """
+    suffix_min = np.minimum.accumulate(lam[::-1])[::-1]
+    w2 = omega ** 2
+    i = np.searchsorted(suffix_min, w2, side="right") - 1       # last i with lam_i <= w2
+    has = (i >= 0) & (i < len(k) - 1) & (omega > 0)
+    i = np.clip(i, 0, len(k) - 2)
+    kr = _hermite_root(k[i], k[i + 1], lam[i], lam[i + 1], dlam[i], dlam[i + 1], w2, n_iter=6)
+    t = (kr - k[i]) / (k[i + 1] - k[i])
+    return np.where(has, kr, np.nan), i, t
 
 
 # ---------------------------------------------------------------------------
@@ -818,3 +851,16 @@ def _solve_full(cls: _Class, omega: float, j: int, k: float, tol: float = 1e-12)
     lam, vec = _eig_at(cls, k, j + 1)
     psi = vec[:, j]
     return k, psi @ (cls.A1 + 2 * k * cls.A2) @ psi / (2 * omega)
+
+
+# transient response lives in engine/safe_transient.py; re-exported here (public API)
+_TRANSIENT = ("ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst",
+              "mode_transfer", "transient_response")
+__all__ += list(_TRANSIENT)
+
+
+def __getattr__(name):          # lazy, avoids an import cycle
+    if name in _TRANSIENT:
+        from . import safe_transient
+        return getattr(safe_transient, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,346 @@
+"""Forced transient response of a plate from SAFE modes (paper Eqs. 23-26).
+
+Units: SI (N, m, s, Hz); strain dimensionless.
+
+A normal force F(t) acts at a point (or along a line) of the top surface
+z = +h/2, positive along +z; a sensor on the same surface at distance d
+along ``direction_deg`` reads w (displacement), its time derivatives, or the
+in-plane surface strain along the path, averaged over the sensor length.
+
+Modal sum (residue theorem on the SAFE wavenumber integral, propagating
+modes only, far from the source). With the real symmetric SAFE form of
+:mod:`engine.safe` (w = i w~), M-normalised eigenvectors phi and
+D_m = phi^T K~'(k_m) phi = 2 w c_g, the line-source response in the physics
+convention exp(i(k x - w t)) is::
+
+    w(x)   = i F phi_w^2      exp(i k x) / D_m
+    u(x)   =   F phi_u phi_w  exp(i k x) / D_m,     eps_xx = du/dx
+
+(phi at the top surface node). For a point source the plane wave
+exp(ikx) becomes the exact cylindrical wave (k/2) H0(kr) for w, and
+(k/2) i H1(kr) for the radial displacement u_r (eps_rr = du_r/dr); far from
+the source this is sqrt(k / 2 pi r) exp(i(kr - pi/4)). The point-source
+option uses this isotropic (axisymmetric) spreading along the chosen
+direction: for anisotropic plates it ignores beam steering / the curvature
+of the wave surface. The strain averaged over a sensor of length L centred
+at d is exactly [u(d + L/2) - u(d - L/2)] / L.
+
+Time synthesis: the spectrum of F is taken from dF/dt (finite for steps),
+``F(w) = G(w) / (i w)``; the DC bin is dropped (AC-coupled record). The
+spectrum is tapered by a half cosine over the top 10 % of the band below
+``fmax_hz`` (default: the Nyquist frequency or the force bandwidth,
+whichever is lower). The FFT period is extended until the slowest included
+component (smallest group velocity over the used band, usually A0 at the
+lowest bin) has crossed d before the period ends, so nothing wraps around
+into the returned window; t = 0 is the force onset.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import special
+from scipy.fft import irfft, next_fast_len
+
+from .laminate import Laminate
+from .safe import (TWO_PI, SafeError, _branch_table, _cheb_branches, _dense_table, _invert_table,
+                   _reduce, _roots_from_series, safe_model)
+
+__all__ = ["ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst",
+           "mode_transfer", "transient_response", "QUANTITIES"]
+
+QUANTITIES = ("displacement", "velocity", "acceleration", "strain")
+
+
+# ---------------------------------------------------------------------------
+# force histories
+def _half_sine_spectrum(amp: float, T: float, w: np.ndarray) -> np.ndarray:
+    """FT (exp(-i w t) convention) of amp*sin(pi t/T) on [0, T], N s."""
+    a = np.pi / T
+    den = a * a - w * w
+    near = np.abs(den) < 1e-9 * a * a
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = amp * a * (1.0 + np.exp(-1j * w * T)) / np.where(near, 1.0, den)
+    return np.where(near, -0.5j * amp * T * np.sign(w), g)     # limit at w = +-pi/T
+
+
+@dataclass(frozen=True, eq=False)
+class ForceHistory:
+    """A force history F(t) (N), zero before t = 0, held after its end.
+
+    ``kind``: 'half_sine' (amplitude, duration), 'step' (amplitude, raised-cosine
+    rise of ``duration``) or 'samples' (piecewise linear through ``t``, ``f``).
+    """
+
+    kind: str
+    amplitude_n: float = 1.0
+    duration_s: float = 0.0
+    t: np.ndarray | None = None
+    f: np.ndarray | None = None
+
+    @classmethod
+    def from_samples(cls, t, f) -> "ForceHistory":
+        """Piecewise-linear force through (t_i, f_i); 0 before t_0, f_last after the end."""
+        t = np.asarray(t, float).ravel(); f = np.asarray(f, float).ravel()
+        if t.size < 2 or t.size != f.size or np.any(np.diff(t) <= 0) or t[0] < 0:
+            raise SafeError("force samples: expected increasing times >= 0 s and equal lengths")
+        return cls("samples", 1.0, float(t[-1]), t, f)
+
+    def __call__(self, t) -> np.ndarray:
+        t = np.asarray(t, float)
+        A, T = self.amplitude_n, self.duration_s
+        if self.kind == "half_sine":
+            return np.where((t >= 0) & (t <= T), A * np.sin(np.pi * np.clip(t, 0, T) / T), 0.0)
+        if self.kind == "step":
+            r = np.clip(t / T, 0.0, 1.0)
+            return np.where(t >= 0, A * 0.5 * (1.0 - np.cos(np.pi * r)), 0.0)
+        return np.where(t < self.t[0], 0.0, np.interp(t, self.t, self.f))
+
+    @property
+    def final_value(self) -> float:
+        return {"half_sine": 0.0, "step": self.amplitude_n}.get(self.kind, float(self.f[-1]) if self.f is not None else 0.0)
+
+    def derivative_spectrum(self, frequency_hz) -> np.ndarray:
+        """FT of dF/dt, exp(-i 2 pi f t) convention, N."""
+        w = TWO_PI * np.asarray(frequency_hz, float)
+        A, T = self.amplitude_n, self.duration_s
+        if self.kind == "half_sine":
+            return 1j * w * _half_sine_spectrum(A, T, w)
+        if self.kind == "step":     # dF/dt = A pi/(2T) sin(pi t/T) on [0, T]
+            return _half_sine_spectrum(A * np.pi / (2 * T), T, w)
+        # piecewise linear: jump f0 at t0, then constant slopes
+        t, f = self.t, self.f
+        s = np.diff(f) / np.diff(t)
+        out = np.empty(w.shape, complex)
+        wf = w.ravel()
+        res = np.empty(wf.shape, complex)
+        for i0 in range(0, wf.size, 512):
+            ww = wf[i0:i0 + 512, None]
+            e = np.exp(-1j * ww * t[None, :])
+            with np.errstate(invalid="ignore", divide="ignore"):
+                seg = np.where(ww == 0, np.diff(t)[None, :], (e[:, :-1] - e[:, 1:]) / (1j * ww))
+            res[i0:i0 + 512] = f[0] * e[:, 0] + seg @ s
+        out[...] = res.reshape(w.shape)
+        return out
+
+    def spectrum(self, frequency_hz) -> np.ndarray:
+        """FT of F (N s), exp(-i 2 pi f t) convention; 0 at f = 0 (DC dropped)."""
+        f = np.asarray(frequency_hz, float)
+        w = TWO_PI * f
+        g = self.derivative_spectrum(f)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(w == 0, 0.0, g / (1j * np.where(w == 0, 1.0, w)))
+
+    def bandwidth_hz(self, rel: float = 1e-2) -> float:
+        """Highest frequency where |FT(dF/dt)| still exceeds rel * its maximum."""
+        span = self.duration_s if self.duration_s > 0 else 1e-6
+        f = np.linspace(0.0, 200.0 / span, 4001)
+        g = np.abs(self.derivative_spectrum(f))
+        above = np.nonzero(g >= rel * g.max())[0]
+        return float(f[above[-1]]) if above.size else float(f[-1])
+
+
+def hammer_force(duration_s: float, amplitude_n: float = 1.0) -> ForceHistory:
+    """Instrumented-hammer tap: half-sine pulse of the given duration (s) and peak (N)."""
+    if not duration_s > 0:
+        raise SafeError(f"hammer duration {duration_s!r} s: expected a positive value")
+    return ForceHistory("half_sine", float(amplitude_n), float(duration_s))
+
+
+def pencil_lead_break(rise_s: float = 1e-6, amplitude_n: float = 1.0) -> ForceHistory:
+    """Pencil-lead break (Hsu-Nielsen): the lead's downward push is released, i.e. a
+    +z step of ``amplitude_n`` with a raised-cosine rise of ``rise_s`` (~1 us)."""
+    if not rise_s > 0:
+        raise SafeError(f"pencil-lead rise time {rise_s!r} s: expected a positive value")
+    return ForceHistory("step", float(amplitude_n), float(rise_s))
+
+
+def tone_burst(fc_hz: float, cycles: float = 5.0, amplitude_n: float = 1.0,
+               points_per_cycle: int = 64) -> ForceHistory:
+    """Hann-windowed sine burst of ``cycles`` cycles at ``fc_hz`` (sampled, piecewise linear)."""
+    if not (fc_hz > 0 and cycles > 0):
+        raise SafeError(f"tone burst fc={fc_hz!r} Hz, cycles={cycles!r}: expected positive values")
+    T = cycles / fc_hz
+    t = np.linspace(0.0, T, int(np.ceil(cycles * points_per_cycle)) + 1)
+    f = amplitude_n * np.sin(np.pi * t / T) ** 2 * np.sin(TWO_PI * fc_hz * t)
+    return ForceHistory.from_samples(t, f)
+
+
+# ---------------------------------------------------------------------------
+# modal transfer functions
+def _hankel(nu: int, z: np.ndarray) -> np.ndarray:
+    """H_nu^(1)(z) for real z > 0: exact below 25, 8-term asymptotic series above."""
+    z = np.asarray(z, float)
+    out = np.empty(z.shape, complex)
+    small = z < 25.0
+    if np.any(small):
+        out[small] = special.hankel1(nu, z[small])
+    if np.any(~small):
+        zz = z[~small]
+        mu = 4.0 * nu * nu
+        term = np.ones_like(zz, dtype=complex)
+        s = term.copy()
+        for m in range(1, 9):
+            term = term * (mu - (2 * m - 1) ** 2) / (m * 8.0 * zz) * 1j
+            s = s + term
+        out[~small] = np.sqrt(2.0 / (np.pi * zz)) * np.exp(1j * (zz - nu * np.pi / 2 - np.pi / 4)) * s
+    return out
+
+
+def _spatial(k: np.ndarray, x: float, source: str, kind: str) -> np.ndarray:
+    """Spatial factor replacing exp(ikx): kind 'w' (w-like), 'u' (u-like), 'du' (d/dx of u-like)."""
+    if source == "line":
+        e = np.exp(1j * k * x)
+        return e * (1j * k) if kind == "du" else e
+    kr = k * x
+    if kind == "w":
+        return 0.5 * k * _hankel(0, kr)
+    if kind == "u":
+        return 0.5 * k * 1j * _hankel(1, kr)
+    return 0.5 * k * 1j * (k * _hankel(0, kr) - _hankel(1, kr) / x)
+
+
+def _check_common(distance_m, quantity, sensor_length_m, source):
+    if quantity not in QUANTITIES:
+        raise SafeError(f"quantity {quantity!r}: expected one of {QUANTITIES}")
+    if source not in ("point", "line"):
+        raise SafeError(f"source {source!r}: expected 'point' or 'line'")
+    if not (np.isfinite(distance_m) and distance_m > 0):
+        raise SafeError(f"distance {distance_m!r} m: expected a positive value")
+    if not (sensor_length_m >= 0 and sensor_length_m / 2 < distance_m):
+        raise SafeError(f"sensor length {sensor_length_m!r} m: expected 0 <= L < 2 d")
+
+
+def _mode_data(model, wmax: float, labels):
+    """Per included mode: Chebyshev series of lambda, lambda' and surface products."""
+    rows = _branch_table(model, wmax)
+    if labels is not None:
+        missing = set(labels) - {r["label"] for r in rows}
+        if missing:
+            raise SafeError(f"mode(s) {sorted(missing)} do not exist below {wmax / TWO_PI:g} Hz; "
+                            f"expected some of {[r['label'] for r in rows]}")
+        rows = [r for r in rows if r["label"] in labels]
+    top = 3 * (len(model.z_nodes) - 1)
+    out = []
+    for ci in sorted({r["ci"] for r in rows}):
+        rs = [r for r in rows if r["ci"] == ci]
+        cls = model.classes[ci]
+        nb = max(r["j"] for r in rs) + 1
+        red = _reduce(cls, wmax, n_branches=nb)
+        if red is None:
+            continue
+        probes = (cls.to_phys[[top, top + 2], :] @ red.basis)     # (2, r): phi_u, phi_w at the top
+        br = _cheb_branches(red, nb, probes=probes)
+        for r in rs:
+            out.append((r["label"], br, r["j"], r["cutoff"]))
+    return out
+
+
+def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_m, source):
+    """Complex transfer per mode (physics convention), per unit force, on grid f (Hz)."""
+    w = TWO_PI * f
+    res = {}
+    for label, br, j, _cut in data:
+        kt, lt, dt, ex = _dense_table(br, j)
+        k, i, t = _invert_table(kt, lt, dt, w)
+        ok = np.isfinite(k)
+        H = np.zeros(f.shape, complex)
+        if np.any(ok):
+            i, t, kk = i[ok], t[ok], k[ok]
+            lerp = lambda v: v[i] + t * (v[i + 1] - v[i])
+            D = 2.0 * w[ok] * lerp(dt / (2.0 * np.sqrt(np.maximum(lt, 1e-300))))   # 2 w c_g
+            prod = ex["prod"]              # (n+1, 4): uu, uw, wu, ww
+            puw, pww = lerp(prod[:, 1]), lerp(prod[:, 3])
+            if quantity == "strain":
+                if sensor_length_m > 0:
+                    L = sensor_length_m
+                    sp = (_spatial(kk, distance_m + L / 2, source, "u")
+                          - _spatial(kk, distance_m - L / 2, source, "u")) / L
+                else:
+                    sp = _spatial(kk, distance_m, source, "du")
+                H[ok] = puw * sp / D
+            else:
+                Hw = 1j * pww * _spatial(kk, distance_m, source, "w") / D
+                ww = w[ok]
+                H[ok] = {"displacement": Hw, "velocity": -1j * ww * Hw,
+                         "acceleration": -ww * ww * Hw}[quantity]
+        res[label] = H
+    return res
+
+
+def mode_transfer(laminate: Laminate, distance_m: float, frequency_hz, *, direction_deg: float = 0.0,
+                  quantity: str = "displacement", sensor_length_m: float = 0.0, source: str = "point",
+                  modes=None, order: int | None = None, elements_per_ply: int | None = None) -> dict:
+    """Per-mode frequency response (per newton of force) at the sensor.
+
+    Physics convention exp(i(k x - w t)); zero where a mode does not exist.
+    Returns {label: complex array over frequency_hz}.
+    """
+    _check_common(distance_m, quantity, sensor_length_m, source)
+    f = np.atleast_1d(np.asarray(frequency_hz, float))
+    model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
+                       fmax_hz=float(f.max()))
+    data = _mode_data(model, TWO_PI * float(f.max()), modes)
+    return _transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source)
+
+
+def transient_response(laminate: Laminate, distance_m: float, force: ForceHistory, fs_hz: float,
+                       n_samples: int, *, direction_deg: float = 0.0, quantity: str = "strain",
+                       sensor_length_m: float = 0.0, source: str = "point",
+                       fmax_hz: float | None = None, modes=None, order: int | None = None,
+                       elements_per_ply: int | None = None) -> np.ndarray:
+    """Sensor record (n_samples at fs_hz, t = 0 at force onset) for a surface normal force.
+
+    quantity: 'displacement' (w, m), 'velocity' (m/s), 'acceleration' (m/s^2) or
+    'strain' (surface strain along the path averaged over sensor_length_m).
+    ``modes`` restricts the sum to some labels (e.g. ("A0",)). See the module
+    docstring for conventions, padding and the point-source model.
+    """
+    _check_common(distance_m, quantity, sensor_length_m, source)
+    if not (fs_hz > 0 and int(n_samples) >= 1):
+        raise SafeError(f"fs={fs_hz!r} Hz, n_samples={n_samples!r}: expected positive values")
+    if not isinstance(force, ForceHistory):
+        raise SafeError("force: expected a ForceHistory (hammer_force, pencil_lead_break, ...)")
+    n_samples = int(n_samples)
+    fmax = min(fs_hz / 2.0, force.bandwidth_hz()) if fmax_hz is None else float(fmax_hz)
+    if not 0 < fmax <= fs_hz / 2.0 * (1 + 1e-12):
+        raise SafeError(f"fmax {fmax_hz!r} Hz: expected 0 < fmax <= fs/2 = {fs_hz / 2:g} Hz")
+    model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
+                       fmax_hz=fmax)
+    data = _mode_data(model, TWO_PI * fmax, modes)
+    t_rec = n_samples / fs_hz
+    # padding: the slowest broadband component (a fundamental mode, A0 at the
+    # lowest bin) must arrive within the FFT period. Narrow-band slow parts of
+    # higher modes (near a cut-off, a zero-group-velocity point or a veering)
+    # ring there and are not counted; the period is capped at 64 records.
+    T0 = max(2.0 * t_rec, t_rec + force.duration_s)
+    cuts = [cut for *_, cut in data if cut > 0]
+    f_hi = min([fmax] + cuts) / 2.0
+    fl = np.geomspace(min(1.0 / (64 * t_rec), f_hi / 2), f_hi, 200)
+    cg_low = np.full(fl.shape, np.inf)     # slowest fundamental-mode c_g at or above f
+    for label, br, j, cut in data:
+        if cut > 0:
+            continue
+        k, dl = _roots_from_series(br, TWO_PI * fl, j)
+        cg = np.where(np.isfinite(dl) & (dl > 0), dl / (2 * TWO_PI * fl), np.inf)
+        cg_low = np.minimum(cg_low, cg)
+    cg_low = np.minimum.accumulate(cg_low[::-1])[::-1]
+    if not np.all(np.isfinite(cg_low)):
+        cg_low = np.full(fl.shape, 1e3)
+    T = T0
+    for _ in range(50):
+        cmin = float(np.interp(np.log(1.0 / T), np.log(fl), cg_low))
+        need = min(t_rec + force.duration_s + (distance_m + sensor_length_m) / cmin * 1.05, 64 * t_rec)
+        if need <= T * (1 + 1e-3):
+            break
+        T = need
+    n_fft = next_fast_len(int(np.ceil(T * fs_hz)), real=True)
+    f = np.arange(n_fft // 2 + 1) * fs_hz / n_fft
+    band = (f > 0) & (f <= fmax)
+    fb = f[band]
+    taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
+    H = sum(_transfer_from_data(data, fb, distance_m, quantity, sensor_length_m, source).values())
+    Y = np.zeros(f.shape, complex)
+    Y[band] = np.conj(H) * force.spectrum(fb) * taper
+    y = irfft(Y, n=n_fft) * fs_hz
+    return y[:n_samples]
