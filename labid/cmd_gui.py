@@ -17,7 +17,14 @@ def run(args) -> None:
         raise UserError(f"PySide6 is not available ({e}); expected the Qt bindings to be installed") from None
     from .gui.main_window import MainWindow
     app = QApplication.instance() or QApplication(["labid"])
+    import gc
     win = MainWindow(args.run)
     win.show()
     app.exec()
+    # tear the widgets down while the interpreter is intact (PySide6/pyqtgraph can
+    # crash when the garbage collector meets them during finalisation)
+    win.deleteLater()
+    del win
+    app.processEvents()
+    gc.collect()
     return None

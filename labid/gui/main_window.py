@@ -16,6 +16,7 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QPushButton, QTabWidget)
 
 from ..errors import UserError
+from .analysis_link import ANALYSIS_API, analysis_job, analysis_summary, save_picks, show_analysis
 from .worker import Job
 
 TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap")
@@ -244,6 +245,46 @@ class MainWindow(QMainWindow):
         if spec is None:
             raise UserError("the specimen on the Setup tab is not valid; fix it first")
         return spec
+
+    # -- analysis (labid.analysis, as 'labid analyze') --------------------------------------------
+    def analysis_link(self):
+        """The analysis workflow module if it has landed, else None."""
+        from .common import backend
+        return backend("labid.analysis", *ANALYSIS_API)
+
+    def analyze(self) -> None:
+        """Run the analysis of the run file (as 'labid analyze') in a background job."""
+        link = self.analysis_link()
+        if link is None or not self.run_path:
+            self.message("analysis: not available (no run file or no analysis workflow)", error=True)
+            return
+        run = self.run_path
+        temperature = self.setup.temperature_c
+
+        def work(progress, should_stop):
+            return analysis_job(link, run, temperature, progress, should_stop)
+
+        self.start_job("analysis", work, self._analysis_done)
+
+    def _analysis_done(self, out) -> None:
+        show_analysis(self, out)
+        self.message("analysis done: " + analysis_summary(out))
+        for v in (self.identification, self.gap):
+            v.reload()
+
+    def save_modal_picks(self, peaks) -> bool:
+        link = self.analysis_link()
+        if link is None or not self.run_path:
+            return False
+        try:
+            save_picks(link, self.run_path, peaks)
+        except (UserError, OSError, ValueError) as e:
+            self.message(f"save picks: {e}", error=True)
+            return False
+        self.message(f"{len(peaks)} picks saved in {self.run_path}")
+        for v in (self.identification, self.gap):
+            v.reload()
+        return True
 
     def session_state(self) -> dict:
         st = {"tab": int(self.tabs.currentIndex())}

@@ -1,27 +1,184 @@
-"""Modes tab (placeholder until its back-end lands)."""
+"""Modes tab: the averaged spectrum (summed normalised indicator) with the automatic
+picks; click to add (or, on a pick, remove) a peak; model frequencies overlaid
+after identification.
+
+Picking and editing are ``engine.modal.pick_peaks`` / ``add_peak`` / ``remove_peak``
+as used by the analysis workflow (``labid.analysis``, ``labid analyze``); the
+edited picks go back into the run's features, which identification and
+diagnosis read.
+"""
 from __future__ import annotations
 
-from PySide6.QtWidgets import QVBoxLayout, QWidget
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QTableWidget,
+                               QTableWidgetItem, QVBoxLayout, QWidget)
 
-from .common import Banner, backend
+from .common import Banner, plot
 
 
 class ModesView(QWidget):
     def __init__(self, main, parent=None):
         super().__init__(parent)
         self.main = main
+        self.spec = None            # engine.modal.Spectra
+        self.indicator = None       # (nf,) curve shown
+        self.peaks: tuple = ()      # engine.modal.Peak
+        self.edited = False
         self.banner = Banner()
+        self.analyze_btn = QPushButton("Analyze run")
+        self.save_btn = QPushButton("Save picks")
+        self.save_btn.setEnabled(False)
+        self.hint = QLabel("click on the spectrum: add a peak there; click on a pick: remove it")
+        self.plot = plot("averaged spectrum", ("frequency", "Hz"), ("indicator", ""))
+        self.plot.setLogMode(y=True)
+        self.plot.addLegend(offset=(-5, 5))
+        self.plot.scene().sigMouseClicked.connect(self._clicked)
+        self.table = QTableWidget(0, 5)
+        self.table.setHorizontalHeaderLabels(["f (Hz)", "σ (Hz)", "ζ (%)", "confidence", "model (Hz)"])
+        self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
+        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table.verticalHeader().setVisible(True)
+        self.table.setMaximumWidth(420)
+        top = QHBoxLayout()
+        top.addWidget(self.analyze_btn)
+        top.addWidget(self.save_btn)
+        top.addWidget(self.hint, 1)
+        body = QHBoxLayout()
+        body.addWidget(self.plot, 1)
+        body.addWidget(self.table)
         lay = QVBoxLayout(self)
         lay.addWidget(self.banner)
-        lay.addStretch(1)
+        lay.addLayout(top)
+        lay.addLayout(body, 1)
+        self.analyze_btn.clicked.connect(self.main.analyze)
+        self.save_btn.clicked.connect(self.save_picks)
         self.reload()
 
+    # -- data ------------------------------------------------------------------------
     def reload(self) -> None:
-        if backend("labid.analysis") is None:
-            self.banner.warn("not available yet: the labid.analysis workflow has not landed in this build")
+        link = self.main.analysis_link()
+        if link is None:
+            self.banner.warn("not available yet: the analysis workflow (labid.analysis, as "
+                             "'labid analyze') has not landed in this build")
+            self.analyze_btn.setEnabled(False)
+            self._draw()
+            return
+        self.analyze_btn.setEnabled(self.main.run_path is not None)
+        if self.spec is None:
+            self.banner.info("press 'Analyze run' to compute the spectra and pick the resonances"
+                             if self.main.run_path else "no run file yet: acquire first")
+        self._draw()
 
+    def set_modal(self, spec, peaks, indicator=None, edited: bool = False) -> None:
+        """Show spectra ``spec`` (engine.modal.Spectra) and ``peaks``."""
+        from engine import modal
+        self.spec = spec
+        self.indicator = modal.indicator(spec) if indicator is None else np.asarray(indicator)
+        self.peaks = tuple(peaks)
+        self.edited = edited
+        self.save_btn.setEnabled(edited)
+        self.banner.info(f"{spec.n_hits} hits, {len(spec.channels)} channels "
+                         f"({'H1' if spec.kind == 'frf' else 'auto-spectra'}), Δf = {spec.df:.3g} Hz · "
+                         f"{len(self.peaks)} peaks")
+        self._draw()
+
+    def model_frequencies(self) -> np.ndarray:
+        res = self.main.read_results("identification")
+        out = []
+        for b in ((res or {}).get("blocks") or {}).values():
+            if isinstance(b, dict) and b.get("kind") == "modal" and b.get("predicted") is not None:
+                out.extend(np.atleast_1d(np.asarray(b["predicted"], float)))
+        return np.asarray(out)
+
+    # -- editing ----------------------------------------------------------------------------
+    def _clicked(self, ev) -> None:
+        if self.spec is None or ev.button() != Qt.LeftButton:
+            return
+        vb = self.plot.getPlotItem().vb
+        if not vb.sceneBoundingRect().contains(ev.scenePos()):
+            return
+        f = float(vb.mapSceneToView(ev.scenePos()).x())
+        # a click within 8 px of a pick removes it
+        px = abs(vb.mapSceneToView(ev.scenePos() + pg.Point(8, 0)).x() - f)
+        self.toggle_peak(f, tol_hz=max(px, 2 * self.spec.df))
+
+    def toggle_peak(self, f_hz: float, tol_hz: float | None = None) -> str:
+        """Remove the pick within ``tol_hz`` of ``f_hz``, else add one fitted there.
+        Returns 'removed', 'added' or an error message."""
+        from engine import modal
+        tol = 2 * self.spec.df if tol_hz is None else tol_hz
+        near = [p for p in self.peaks if abs(p.frequency_hz - f_hz) <= tol]
+        if near:
+            self.peaks = modal.remove_peak(self.peaks, f_hz, tol)
+            what = "removed"
+        else:
+            try:
+                self.peaks = modal.add_peak(self.peaks, self.spec, f_hz)
+            except ValueError as e:
+                self.main.message(f"add peak: {e}", error=True)
+                return str(e)
+            what = "added"
+        self.edited = True
+        self.save_btn.setEnabled(True)
+        self.main.message(f"peak {what} near {f_hz:.2f} Hz; {len(self.peaks)} peaks (not saved yet)")
+        self._draw()
+        return what
+
+    def save_picks(self) -> bool:
+        link = self.main.analysis_link()
+        if link is None:
+            return False
+        ok = self.main.save_modal_picks(self.peaks)
+        if ok:
+            self.edited = False
+            self.save_btn.setEnabled(False)
+        return ok
+
+    # -- drawing ----------------------------------------------------------------------------
+    def _draw(self) -> None:
+        self.plot.clear()
+        if self.spec is None:
+            self.table.setRowCount(0)
+            return
+        f = self.spec.frequencies_hz
+        y = np.maximum(self.indicator, 1e-30)
+        self.plot.plot(f[1:], y[1:], pen=pg.mkPen("#1f77b4", width=1), name="summed normalised spectrum")
+        top = float(np.max(y[1:]))
+        fp = np.array([p.frequency_hz for p in self.peaks])
+        if fp.size:
+            yp = np.interp(fp, f, y)
+            manual = np.array([p.manual for p in self.peaks])
+            if (~manual).any():
+                self.plot.plot(fp[~manual], yp[~manual] * 1.6, pen=None, symbol="t", symbolSize=11,
+                               symbolBrush="#d62728", name="automatic picks")
+            if manual.any():
+                self.plot.plot(fp[manual], yp[manual] * 1.6, pen=None, symbol="t", symbolSize=11,
+                               symbolBrush="#ff7f0e", name="manual picks")
+        model = self.model_frequencies()
+        if model.size:
+            self.plot.plot(model, np.full(model.size, top * 6), pen=None, symbol="t1", symbolSize=11,
+                           symbolBrush="#2ca02c", name="identified model")
+            for fm in model:
+                self.plot.addItem(pg.InfiniteLine(fm, angle=90, pen=pg.mkPen("#2ca02c", style=Qt.DotLine)))
+        fmax = 1.25 * max(fp.max() if fp.size else f[-1] / 1.25, model.max() if model.size else 0)
+        self.plot.setXRange(0, min(f[-1], fmax), padding=0.01)
+        self.table.setRowCount(len(self.peaks))
+        for i, p in enumerate(self.peaks):
+            m = model[np.argmin(abs(model - p.frequency_hz))] if model.size else None
+            cells = [f"{p.frequency_hz:.3f}", f"{p.sigma_hz:.2g}", f"{100 * p.damping_ratio:.3g}",
+                     f"{p.confidence:.2f}" + (" (manual)" if p.manual else ""),
+                     "—" if m is None else f"{m:.3f}"]
+            for j, c in enumerate(cells):
+                item = QTableWidgetItem(c)
+                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                self.table.setItem(i, j, item)
+
+    # -- session state -------------------------------------------------------------------------
     def state(self) -> dict:
-        return {}
+        return {"edited": bool(self.edited)}
 
     def restore(self, st: dict) -> None:
-        pass
+        self.spec = None
+        self.peaks = ()
