@@ -211,12 +211,12 @@ def _check_common(distance_m, quantity, sensor_length_m, source):
         raise SafeError(f"sensor length {sensor_length_m!r} m: expected 0 <= L < 2 d")
 
 
-def _mode_data(model, wmax: float, labels):
+def _mode_data(model, wmax: float, labels, strict: bool = True):
     """Per included mode: Chebyshev series of lambda, lambda' and surface products."""
     rows = _branch_table(model, wmax)
     if labels is not None:
         missing = set(labels) - {r["label"] for r in rows}
-        if missing:
+        if missing and strict:
             raise SafeError(f"mode(s) {sorted(missing)} do not exist below {wmax / TWO_PI:g} Hz; "
                             f"expected some of {[r['label'] for r in rows]}")
         rows = [r for r in rows if r["label"] in labels]
@@ -268,6 +268,40 @@ def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length
     return res
 
 
+BAND_RATIO = 50.0
+
+
+def _bands(laminate, direction_deg, fmax, f_floor, modes, order, elements_per_ply):
+    """Frequency bands (f_lo, f_hi, data), top band first, each f_hi/f_lo = BAND_RATIO.
+
+    Each band has its own discretisation and Chebyshev series on [0, k(f_hi)], so
+    that low frequencies keep full relative accuracy (eigenvalue round-off is
+    relative to the largest eigenvalue of the band).
+    """
+    out = []
+    f_hi = fmax
+    while True:
+        f_lo = f_hi / BAND_RATIO
+        if f_lo < f_floor:
+            f_lo = 0.0
+        model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
+                           fmax_hz=f_hi)
+        out.append((f_lo, f_hi, _mode_data(model, TWO_PI * f_hi, modes, strict=not out)))
+        if f_lo == 0.0:
+            return out
+        f_hi = f_lo
+
+
+def _transfer_bands(bands, f, distance_m, quantity, sensor_length_m, source) -> np.ndarray:
+    H = np.zeros(f.shape, complex)
+    for f_lo, f_hi, data in bands:
+        sel = (f > f_lo) & (f <= f_hi)
+        if np.any(sel):
+            H[sel] = sum(_transfer_from_data(data, f[sel], distance_m, quantity, sensor_length_m,
+                                             source).values(), np.zeros(int(sel.sum()), complex))
+    return H
+
+
 def mode_transfer(laminate: Laminate, distance_m: float, frequency_hz, *, direction_deg: float = 0.0,
                   quantity: str = "displacement", sensor_length_m: float = 0.0, source: str = "point",
                   modes=None, order: int | None = None, elements_per_ply: int | None = None) -> dict:
@@ -305,32 +339,31 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     fmax = min(fs_hz / 2.0, force.bandwidth_hz()) if fmax_hz is None else float(fmax_hz)
     if not 0 < fmax <= fs_hz / 2.0 * (1 + 1e-12):
         raise SafeError(f"fmax {fmax_hz!r} Hz: expected 0 < fmax <= fs/2 = {fs_hz / 2:g} Hz")
-    model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
-                       fmax_hz=fmax)
-    data = _mode_data(model, TWO_PI * fmax, modes)
     t_rec = n_samples / fs_hz
+    T_max = 64 * t_rec
+    bands = _bands(laminate, direction_deg, fmax, 1.0 / T_max, modes, order, elements_per_ply)
     # padding: the slowest broadband component (a fundamental mode, A0 at the
     # lowest bin) must arrive within the FFT period. Narrow-band slow parts of
     # higher modes (near a cut-off, a zero-group-velocity point or a veering)
     # ring there and are not counted; the period is capped at 64 records.
-    T0 = max(2.0 * t_rec, t_rec + force.duration_s)
-    cuts = [cut for *_, cut in data if cut > 0]
-    f_hi = min([fmax] + cuts) / 2.0
-    fl = np.geomspace(min(1.0 / (64 * t_rec), f_hi / 2), f_hi, 200)
-    cg_low = np.full(fl.shape, np.inf)     # slowest fundamental-mode c_g at or above f
-    for label, br, j, cut in data:
-        if cut > 0:
-            continue
-        k, dl = _roots_from_series(br, TWO_PI * fl, j)
-        cg = np.where(np.isfinite(dl) & (dl > 0), dl / (2 * TWO_PI * fl), np.inf)
-        cg_low = np.minimum(cg_low, cg)
-    cg_low = np.minimum.accumulate(cg_low[::-1])[::-1]
-    if not np.all(np.isfinite(cg_low)):
-        cg_low = np.full(fl.shape, 1e3)
-    T = T0
+    fl = np.geomspace(1.0 / T_max, fmax, 160)
+    cg_low = np.full(fl.shape, np.inf)          # slowest fundamental c_g at f
+    for f_lo, f_hi, data in bands:
+        sel = (fl > f_lo) & (fl <= f_hi)
+        for label, br, j, cut in data:
+            if cut > 0 or not np.any(sel):
+                continue
+            kt, lt, dt, _ = _dense_table(br, j, 1024)
+            k, i, t = _invert_table(kt, lt, dt, TWO_PI * fl[sel])
+            cg = (dt[i] + t * (dt[i + 1] - dt[i])) / (2 * TWO_PI * fl[sel])
+            cg_low[sel] = np.minimum(cg_low[sel], np.where(np.isfinite(k) & (cg > 0), cg, np.inf))
+    cg_low = np.minimum.accumulate(cg_low[::-1])[::-1]       # slowest at or above f
+    T = max(2.0 * t_rec, t_rec + force.duration_s)
     for _ in range(50):
         cmin = float(np.interp(np.log(1.0 / T), np.log(fl), cg_low))
-        need = min(t_rec + force.duration_s + (distance_m + sensor_length_m) / cmin * 1.05, 64 * t_rec)
+        if not np.isfinite(cmin):
+            break
+        need = min(t_rec + force.duration_s + (distance_m + sensor_length_m) / cmin * 1.05, T_max)
         if need <= T * (1 + 1e-3):
             break
         T = need
@@ -339,7 +372,7 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     band = (f > 0) & (f <= fmax)
     fb = f[band]
     taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
-    H = sum(_transfer_from_data(data, fb, distance_m, quantity, sensor_length_m, source).values())
+    H = _transfer_bands(bands, fb, distance_m, quantity, sensor_length_m, source)
     Y = np.zeros(f.shape, complex)
     Y[band] = np.conj(H) * force.spectrum(fb) * taper
     y = irfft(Y, n=n_fft) * fs_hz

@@ -178,11 +178,15 @@ def test_group_velocity_fast_path_and_smoothness():
     full = dispersion(lam, f).mode("A0").group_velocity_m_s
     fast = group_velocity(lam, f, "A0")
     np.testing.assert_allclose(fast, full, rtol=1e-9)
-    # smooth in the constants: second difference << first difference
+    # smooth in the constants: the second difference (curvature + noise) is far below
+    # the first difference wherever G13 matters, and below 1e-8 c_g everywhere
     cg = [group_velocity(lam.with_params({"G13": 5.08e9 * (1 + e)}), f) for e in (-1e-4, 0.0, 1e-4)]
     d1, d2 = cg[2] - cg[1], cg[1] - cg[0]
-    assert np.all(np.abs(d1) > 0)
-    assert np.max(np.abs(d1 - d2) / np.abs(d1)) < 2e-3
+    assert np.all(d1 > 0)                               # stiffer shear, faster A0
+    sens = np.abs(d1) > 1e-5 * cg[1]
+    assert sens.sum() > 30
+    assert np.max(np.abs(d1 - d2)[sens] / np.abs(d1[sens])) < 1e-3
+    assert np.max(np.abs(d1 - d2) / cg[1]) < 1e-8
 
 
 def test_rotation_matches_laminate_rotate_z():
