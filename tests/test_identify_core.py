@@ -46,8 +46,8 @@ def test_linear_gaussian_lm_matches_exact_posterior():
     est = estimate([_linear_block(A, sigma, y)], names, start, prior=prior, space="linear")
     mean, cov = _exact_posterior(A, sigma, y, m, s_abs)
     assert est.converged
-    # converged = remaining error below 1e-6 posterior standard deviations
-    np.testing.assert_allclose(est.values, mean, atol=1e-6 * np.sqrt(np.diag(cov)).min())
+    # converged: remaining error ~ sqrt(1e-9 chi^2) posterior standard deviations
+    np.testing.assert_allclose(est.values, mean, atol=3e-4 * np.sqrt(np.diag(cov)).min())
     np.testing.assert_allclose(est.cov, cov, rtol=1e-9)
     np.testing.assert_allclose(est.std, np.sqrt(np.diag(cov)), rtol=1e-9)
     d = np.sqrt(np.diag(cov))
@@ -119,8 +119,8 @@ def test_identifiability_report_names_the_constraining_block():
     blocks = [make("A-only", "a", "modal"), make("B-only", "b", "waves")]
     est = estimate(blocks, ("a", "b", "c"), {"a": 1.0, "b": 3.0, "c": 1.0}, prior=1.0)
     rep = est.identifiability["parameters"]
-    assert rep["a"]["constrained_by"] == ["A-only"]
-    assert rep["b"]["constrained_by"] == ["B-only"]
+    assert rep["a"]["constrained_by"] == ["modal"]
+    assert rep["b"]["constrained_by"] == ["waves"]
     assert rep["c"]["constrained_by"] == [] and not rep["c"]["identified"]
     assert est.identifiability["poorly_identified"] == ["c"]
     # unseen parameter keeps the prior: value = start, std = prior (log-sd 1 -> p*1)
@@ -140,7 +140,7 @@ def test_product_only_is_flagged_by_correlation_and_singular_values():
     assert est.params["a"] * est.params["b"] == pytest.approx(6.0, rel=1e-6)
     assert est.params["a"] == pytest.approx(est.params["b"], rel=1e-6)  # symmetric prior split
     assert est.corr[0, 1] == pytest.approx(-1.0, abs=1e-3)
-    sv = est.identifiability["blocks"]["prod"]["singular_values"]
+    sv = est.identifiability["data_sets"]["data"]["singular_values"]
     assert sv[1] < 1e-8 * sv[0]
     w = est.identifiability["weakest_direction"]
     assert abs(w["a"]) == pytest.approx(abs(w["b"]), rel=1e-6)
