@@ -71,7 +71,7 @@ def test_causal_no_wraparound_and_velocity_is_dw_dt():
     # nothing can arrive before the fastest mode (S0 plate speed) has crossed x
     c_max = 5500.0
     early = np.arange(n) / fs < 0.8 * x / c_max
-    assert np.max(np.abs(a[early])) < 1e-3 * np.max(np.abs(a))
+    assert np.max(np.abs(a[early])) < 2e-3 * np.max(np.abs(a))
     # (w and v are AC: the DC bin is dropped and the slow ~1/t flexural tail of the
     # impulse from the previous FFT period leaves a small offset, not a precursor)
     # time derivatives (spectral differentiation in the record interior)
