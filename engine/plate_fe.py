@@ -7,8 +7,8 @@ U = 1/2 int(eps0'A eps0 + 2 eps0'B kappa + kappa'D kappa + gamma'H gamma) dS,
 kinetic energy with I1, I2, I3 (Eq. 9). A, B, D, H come from
 ``engine.laminate.abdh`` (shear factor 5/6).
 
-Discretisation: a uniform nx x ny grid of 16-node bicubic Lagrange elements,
-5 DOF per node (u0, v0, w0, bx, by; global DOF = 5 node + k), free edges.
+Discretisation: a tensor grid of nx x ny rectangular 16-node bicubic Lagrange
+elements (uniform or graded towards the edges), 5 DOF per node (u0, v0, w0, bx, by; global DOF = 5 node + k), free edges.
 Transverse shear uses assumed (substitute) strains to avoid shear locking:
 gamma_xz is sampled at 3 (Gauss, along x) x 4 (Gauss, along y) tying points
 and re-interpolated (quadratic in x, cubic in y), gamma_yz likewise with the
