@@ -263,11 +263,18 @@ class _Problem:
             h = np.broadcast_to(h, theta.shape)
             cols: dict[int, list[np.ndarray]] = {i: [] for i in fd_blocks}
             for j in range(len(theta)):
-                t = theta.copy(); t[j] += h[j]
-                pj = self.coords.as_dict(t)
-                self.n_eval += 1
-                for i in fd_blocks:
-                    cols[i].append((np.asarray(self.blocks[i].predict(pj), float) - base[i]) / h[j])
+                for sgn in (1.0, -1.0):   # backward difference at the edge of the physical domain
+                    t = theta.copy(); t[j] += sgn * h[j]
+                    pj = self.coords.as_dict(t)
+                    self.n_eval += 1
+                    try:
+                        ys = [np.asarray(self.blocks[i].predict(pj), float) for i in fd_blocks]
+                        break
+                    except ValueError:
+                        if sgn < 0:
+                            raise
+                for i, y in zip(fd_blocks, ys):
+                    cols[i].append((y - base[i]) / (sgn * h[j]))
             for i in fd_blocks:
                 preds[i] = base[i]
                 jacs[i] = np.column_stack(cols[i]) / self.blocks[i].sigma[:, None]

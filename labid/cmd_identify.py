@@ -59,7 +59,7 @@ def _run(args: argparse.Namespace) -> dict:
     out["specimen"] = problem.specimen.name
     if args.starts:
         st0 = _start(problem, est.names, start)
-        starts = random_starts(st0, est.names, args.starts, seed=args.seed)
+        starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
         doc = load_features(args.features)
         executor = None
         client = None

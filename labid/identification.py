@@ -28,6 +28,7 @@ from engine.identify_models import modal_block, wave_block
 from engine.laminate import PhysicsError
 
 from .errors import UserError
+from .features import read_features, specimen_of, validate_features
 from .specimen import Specimen, load_specimen, specimen_from_dict
 
 __all__ = ["Problem", "load_problem", "problem_from_features", "default_params", "parse_assignments",
@@ -97,35 +98,12 @@ def _sigma(doc: Mapping, key: str, values: np.ndarray, default_rel: float, src: 
 
 
 def _specimen(doc: Mapping, base: Path, src: str) -> Specimen:
-    spec = doc.get("specimen")
-    if spec is None:
-        raise UserError("missing key; expected a specimen file path or table", file=src, key="specimen")
-    if isinstance(spec, Mapping):
-        return specimen_from_dict(spec, f"{src}#specimen")
-    if isinstance(spec, str):
-        p = Path(spec)
-        if spec in ("cfrp", "aluminium") and not (base / p).exists():
-            return load_specimen(spec)
-        return load_specimen(p if p.is_absolute() else base / p)
-    raise UserError(f"value {spec!r}: expected a path or a table", file=src, key="specimen")
+    return specimen_of(doc, base, src)
 
 
 def load_features(path: str | Path) -> dict:
-    """Parse a features JSON file (UserError on a missing or malformed file)."""
-    p = Path(path)
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise UserError("file not found; expected a features JSON file", file=str(p)) from None
-    except OSError as e:
-        raise UserError(f"cannot read: {e.strerror}", file=str(p)) from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise UserError(f"not valid JSON ({e.msg} at line {e.lineno})", file=str(p)) from None
-    if not isinstance(doc, dict):
-        raise UserError("expected a JSON object", file=str(p))
-    return doc
+    """Read and validate a features JSON file (``labid.features``)."""
+    return read_features(path)
 
 
 def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str = "<features>",
@@ -138,6 +116,7 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
     ``modal_model`` may pass a prebuilt ``PlateModel`` (same specimen).
     """
     notes: list[str] = []
+    doc = validate_features(doc, src)
     spec = specimen if specimen is not None else _specimen(doc, Path(base_dir), src)
     mats = spec.laminate.materials
     if material is None:
@@ -358,13 +337,17 @@ def _job(spec: tuple) -> dict:
 
 
 def random_starts(nominal: Mapping[str, float], names: Sequence[str], n: int, *,
-                  spread: float | Mapping[str, tuple[float, float]] = 0.5, seed: int = 0
-                  ) -> list[dict[str, float]]:
+                  spread: float | Mapping[str, tuple[float, float]] = 0.5, seed: int = 0,
+                  problem: Problem | None = None) -> list[dict[str, float]]:
     """``n`` random initial guesses: log-uniform within a factor (1 +- spread) of
-    nominal, or uniform within explicit ``{name: (low, high)}`` bounds."""
+    nominal, or uniform within explicit ``{name: (low, high)}`` bounds. With
+    ``problem``, unphysical draws (e.g. G < E/3 for an isotropic plate) are
+    redrawn."""
     rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
+    out: list[dict[str, float]] = []
+    for _ in range(100 * n):
+        if len(out) == n:
+            break
         st = {}
         for nm in names:
             if isinstance(spread, Mapping):
@@ -372,6 +355,11 @@ def random_starts(nominal: Mapping[str, float], names: Sequence[str], n: int, *,
                 st[nm] = float(rng.uniform(lo, hi))
             else:
                 st[nm] = float(nominal[nm] * np.exp(rng.uniform(np.log(1 - spread), np.log(1 + spread))))
+        if problem is not None:
+            try:
+                _start(problem, names, st)
+            except UserError:
+                continue
         out.append(st)
     return out
 
