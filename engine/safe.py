@@ -558,17 +558,20 @@ def _dct1_coeffs(v: np.ndarray) -> np.ndarray:
 
 
 def _cheb_branches(red: _Reduced, nb: int, n0: int = 32, n_max: int = 256, tol: float = 1e-11,
-                   probes: np.ndarray | None = None) -> _Branches:
+                   probes: np.ndarray | None = None, n_vec: int | None = None) -> _Branches:
     """Sample branches 0..nb-1 at nested Chebyshev-Lobatto points until the tail converges.
 
-    ``probes`` (m, r): rows p such that the sign-free products (p . y)(q . y)
-    for pairs listed in _PROBE_PAIRS are also interpolated (used by the transient).
+    ``probes`` (m, r): rows p such that the sign-free products (p . y)(q . y) of
+    every pair are also interpolated (the transient's surface amplitudes).
+    ``n_vec``: if given, lambda is sampled with eigenvalues only (cheaper) and
+    the eigenvector series (products) use a fixed grid of n_vec + 1 nodes; the
+    slope series is then the derivative of the lambda series.
     """
     kmax = red.kmax
     n = n0
     x = np.cos(np.pi * np.arange(n + 1) / n)
     ks = kmax * (1.0 - x) / 2.0            # x = 1 -> k = 0
-    vals = _sample(red, ks, nb, probes)
+    vals = _sample(red, ks, nb, None if n_vec else probes, values_only=bool(n_vec))
     while True:
         lam_c = _dct1_coeffs(vals[0])
         scale = np.max(np.abs(lam_c), axis=0)
@@ -578,7 +581,8 @@ def _cheb_branches(red: _Reduced, nb: int, n0: int = 32, n_max: int = 256, tol: 
             break
         # nested refinement: new points at odd indices of the 2n grid
         x_new = np.cos(np.pi * (2 * np.arange(n) + 1) / (2 * n))
-        new = _sample(red, kmax * (1.0 - x_new) / 2.0, nb, probes)
+        new = _sample(red, kmax * (1.0 - x_new) / 2.0, nb, None if n_vec else probes,
+                      values_only=bool(n_vec))
         merged = []
         for old, nw in zip(vals, new):
             m = np.empty((2 * n + 1,) + old.shape[1:])
@@ -589,12 +593,23 @@ def _cheb_branches(red: _Reduced, nb: int, n0: int = 32, n_max: int = 256, tol: 
         n *= 2
     coeffs = [_dct1_coeffs(v) for v in vals]
     extra = {}
+    if n_vec:
+        dl = np.zeros_like(coeffs[0])
+        dl[:-1] = npcheb.chebder(coeffs[0]) * (-2.0 / kmax)
+        if probes is not None:
+            xv = np.cos(np.pi * np.arange(n_vec + 1) / n_vec)
+            pv = _sample(red, kmax * (1.0 - xv) / 2.0, nb, probes)
+            extra = {"prod": _dct1_coeffs(pv[2])}
+        return _Branches(kmax, coeffs[0], dl, conv, extra)
     if probes is not None:
         extra = {"prod": coeffs[2]}
     return _Branches(kmax, coeffs[0], coeffs[1], conv, extra)
 
 
-def _sample(red: _Reduced, ks: np.ndarray, nb: int, probes=None):
+def _sample(red: _Reduced, ks: np.ndarray, nb: int, probes=None, values_only: bool = False):
+    if values_only:
+        A = red.a0[None] + ks[:, None, None] * red.a1[None] + (ks * ks)[:, None, None] * red.a2[None]
+        return [np.linalg.eigvalsh(A)[:, :nb]]
     lam, vec = _batched_eig(red, ks)
     y = vec[:, :, :nb]                                       # (K, r, nb)
     Ay = np.einsum("ij,kjb->kib", red.a1, y) + 2 * ks[:, None, None] * np.einsum("ij,kjb->kib", red.a2, y)
@@ -689,7 +704,7 @@ def _invert_table(k, lam, dlam, omega):
     i = np.searchsorted(suffix_min, w2, side="right") - 1       # last i with lam_i <= w2
     has = (i >= 0) & (i < len(k) - 1) & (omega > 0)
     i = np.clip(i, 0, len(k) - 2)
-    kr = _hermite_root(k[i], k[i + 1], lam[i], lam[i + 1], dlam[i], dlam[i + 1], w2, n_iter=6)
+    kr = _hermite_root(k[i], k[i + 1], lam[i], lam[i + 1], dlam[i], dlam[i + 1], w2, n_iter=3)
     t = (kr - k[i]) / (k[i + 1] - k[i])
     return np.where(has, kr, np.nan), i, t
 

@@ -230,7 +230,7 @@ def _mode_data(model, wmax: float, labels, strict: bool = True):
         if red is None:
             continue
         probes = (cls.to_phys[[top, top + 2], :] @ red.basis)     # (2, r): phi_u, phi_w at the top
-        br = _cheb_branches(red, nb, probes=probes)
+        br = _cheb_branches(red, nb, probes=probes, n_max=N_CHEB_MAX, n_vec=N_VEC)
         for r in rs:
             out.append((r["label"], br, r["j"], r["cutoff"]))
     return out
@@ -268,7 +268,9 @@ def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length
     return res
 
 
-BAND_RATIO = 50.0
+BAND_RATIO = 400.0
+N_CHEB_MAX = 256      # Chebyshev nodes for lambda (eigenvalues only)
+N_VEC = 64            # nodes for the eigenvector (surface amplitude) series
 
 
 def _bands(laminate, direction_deg, fmax, f_floor, modes, order, elements_per_ply):
@@ -341,7 +343,7 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
         raise SafeError(f"fmax {fmax_hz!r} Hz: expected 0 < fmax <= fs/2 = {fs_hz / 2:g} Hz")
     t_rec = n_samples / fs_hz
     T_max = 64 * t_rec
-    bands = _bands(laminate, direction_deg, fmax, 1.0 / T_max, modes, order, elements_per_ply)
+    bands = _bands(laminate, direction_deg, fmax, 1.0 / (16 * t_rec), modes, order, elements_per_ply)
     # padding: the slowest broadband component (a fundamental mode, A0 at the
     # lowest bin) must arrive within the FFT period. Narrow-band slow parts of
     # higher modes (near a cut-off, a zero-group-velocity point or a veering)
