@@ -370,32 +370,36 @@ def _eig_at(cls: _Class, k: float, n: int | None = None, vectors: bool = True):
 
 
 def _kmax(cls: _Class, wmax: float, branch: int = 0) -> float:
-    """Wavenumber where the lowest class branch reaches wmax (only ~1e-3 accuracy needed).
+    """Wavenumber where the lowest class branch reaches wmax.
 
-    Newton in log-log coordinates (lambda ~ k^p, p = k lambda'/lambda in [2, 4]),
-    which converges in a few steps from any start.
+    Secant iteration on log(lambda) versus log(k) (lambda ~ k^p, 2 <= p <= 4),
+    eigenvalues only; a fixed number of steps after convergence keeps kmax a
+    smooth function of the elastic constants (identification differentiates
+    through it).
     """
-    k = wmax / np.sqrt(max(np.max(np.diag(cls.A2)), 1e-30))
+    def loglam(k):
+        lam = sla.eigh(cls.A0 + k * cls.A1 + k * k * cls.A2, eigvals_only=True,
+                       subset_by_index=[branch, branch], check_finite=False, driver="evr")[0]
+        return np.log(max(lam, 1e-300))
+
+    target = 2.0 * np.log(wmax)
+    x0 = np.log(wmax / np.sqrt(max(np.max(np.diag(cls.A2)), 1e-30)))
+    y0 = loglam(np.exp(x0))
+    x1 = x0 + (target - y0) / 3.0
+    y1 = loglam(np.exp(x1))
     n_done = 0
-    for _ in range(60):
-        lam, vec = _eig_at(cls, k, branch + 1)
-        lam = lam[branch]
-        if lam <= 0:
-            k *= 4.0
-            continue
-        psi = vec[:, branch]
-        p = k * (psi @ (cls.A1 + 2 * k * cls.A2) @ psi) / lam
+    for _ in range(40):
+        p = (y1 - y0) / (x1 - x0) if x1 != x0 else 3.0
         p = min(max(p, 0.5), 6.0)
-        kn = k * (wmax ** 2 / lam) ** (1.0 / p)
-        kn = min(max(kn, k / 8), 8 * k)
-        close = abs(kn / k - 1) < 1e-3
-        k = kn
-        # a fixed number of steps once close keeps kmax a smooth function of the
-        # elastic constants (identification differentiates through it)
+        x2 = x1 + (target - y1) / p
+        x2 = min(max(x2, x1 - 2.0), x1 + 2.0)
+        x0, y0 = x1, y1
+        x1, y1 = x2, loglam(np.exp(x2))
+        close = abs(x1 - x0) < 1e-3
         n_done = n_done + 1 if close or n_done else 0
-        if n_done >= 3:
+        if n_done >= 2:
             break
-    return k
+    return float(np.exp(x1))
 
 
 def _cheb(n: int, a: float, b: float) -> np.ndarray:
