@@ -203,3 +203,21 @@ def test_bad_input():
         group_velocity(AL_PLATE, [1e5], "A7")
     with pytest.raises(KeyError):
         dispersion(AL_PLATE, [1e5]).mode("Z0")
+
+
+def test_non_symmetric_layup_labels():
+    """[0/90] is not mirror symmetric: along 0 deg Lamb and SH still separate (A0 and S0 share
+    a class), along 30 deg everything couples; the three fundamental modes keep their names."""
+    lam = layup([0, 90], t=0.5e-3)
+    f = np.linspace(2e3, 400e3, 40)
+    m0 = safe_model(lam, 0.0, fmax_hz=f.max())
+    assert [c.kind for c in m0.classes] == ["lamb", "sh"]
+    m30 = safe_model(lam, 30.0, fmax_hz=f.max())
+    assert [c.kind for c in m30.classes] == ["all"]
+    for direction in (0.0, 30.0):
+        d = dispersion(lam, f, direction)
+        assert d.labels[:3] == ("A0", "S0", "SH0")
+        a0, s0, sh0 = (d.mode(x).phase_velocity_m_s for x in ("A0", "S0", "SH0"))
+        assert np.all(a0 < sh0) and np.all(sh0 < s0)          # flexural < quasi-shear < quasi-longitudinal
+        assert a0[0] < 0.2 * a0[-1]                            # A0 is dispersive (c_p ~ sqrt(f))
+        assert abs(s0[0] / s0[1] - 1) < 1e-3                   # S0 is not, at low frequency
