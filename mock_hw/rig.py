@@ -403,14 +403,10 @@ def _vibration(rig, specimen, lam, effects, channels, t) -> dict[str, np.ndarray
 
 
 def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.ndarray]:
-    from engine import safe
     src, sim = rig.wave_source, rig.sim
     fmax = min(sim.wave_fmax_hz, 0.45 * fs)
     n_base = 2 * samples + 16
-    if src.kind == "pencil":
-        force = safe.pencil_lead_break(rise_s=src.rise_s, amplitude_n=1.0)
-    else:
-        force = safe.hammer_force(src.contact_s, amplitude_n=1.0)
+    force = ("pencil", src.rise_s) if src.kind == "pencil" else ("hammer", src.contact_s)
     out: dict[str, np.ndarray] = {}
     tf = (np.arange(nf) - lead) / (OVERSAMPLE * fs)
     for c in channels:
@@ -423,7 +419,8 @@ def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.n
             continue
         d = ws.distance_m + effects.path_length
         ap = effects.sensor_aperture if effects.sensor_aperture > 0 else ws.length_m
-        strain = _transient(lam, d, force, fs, n_base, ws.direction_deg, ap, fmax)
+        strain = _causal(_transient(lam, d, force, fs, n_base, ws.direction_deg, ap, fmax),
+                         fs, max(d - ap / 2.0, 1e-6) / _fastest(lam, ws.direction_deg, fmax))
         v = ws.volts_per_strain * c.sensitivity * strain
         out[c.name] = _upsample(v, fs, lead, nf, effects.timing_offset,
                                 _attenuation(lam, d, effects.viscoelastic, ws.direction_deg))
@@ -431,11 +428,44 @@ def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.n
 
 
 @functools.lru_cache(maxsize=64)
-def _transient(lam, d, force, fs, n, direction_deg, aperture, fmax):
+def _transient(lam, d, force_key, fs, n, direction_deg, aperture, fmax):
+    """Unit-force SAFE surface strain at distance d (m), t = 0 at force onset; cached."""
     from engine import safe
+    kind, dur = force_key
+    force = (safe.pencil_lead_break(rise_s=dur, amplitude_n=1.0) if kind == "pencil"
+             else safe.hammer_force(dur, amplitude_n=1.0))
     return np.asarray(safe.transient_response(lam, d, force, fs, n, direction_deg=direction_deg,
                                               quantity="strain", sensor_length_m=aperture,
                                               source="point", fmax_hz=fmax), float)
+
+
+@functools.lru_cache(maxsize=16)
+def _fastest(lam, direction_deg: float, fmax: float) -> float:
+    """Largest group velocity (m/s) of any guided mode below fmax."""
+    from engine import safe
+    disp = safe.dispersion(lam, np.linspace(fmax / 200, fmax, 200), direction_deg)
+    return float(max(np.nanmax(m.group_velocity_m_s) for m in disp.modes))
+
+
+def _causal(y: np.ndarray, fs: float, t_first: float) -> np.ndarray:
+    """Enforce causality on a SAFE record: nothing can arrive before t_first = d / c_max.
+
+    The propagating-mode sum with its DC bin dropped carries a constant offset
+    (the period mean of the quasi-static step response) plus a slow drift; the
+    offset is the mean over t < 0.95 t_first, subtracted everywhere, and the
+    remainder before that time is faded out with a half-cosine.
+    """
+    y = np.array(y, float)
+    m = int(0.95 * t_first * fs)
+    if m >= 2:
+        y -= y[:m].mean()
+        ramp = np.zeros(m)
+        k = max(1, m // 5)
+        ramp[m - k:] = 0.5 - 0.5 * np.cos(np.pi * (np.arange(k) + 1) / (k + 1))
+        y[:m] *= ramp
+    else:
+        y -= y[0]
+    return y
 
 
 def _attenuation(lam, d: float, eta: float, direction_deg: float):
