@@ -419,9 +419,14 @@ class _Reduced:
     n_branches: int
 
 
-def _reduce(cls: _Class, wmax: float, n_k: int = 6, extra: int = 1, small_k=(),
+def _reduce(cls: _Class, wmax: float, n_k: int | None = None, extra: int | None = None, small_k=(),
             n_branches: int | None = None) -> _Reduced | None:
-    """Reduced model of one class capturing every branch below wmax (or the first n_branches)."""
+    """Reduced model of one class capturing every branch below wmax (or the first n_branches).
+
+    Basis: the n_cut + extra lowest eigenvectors at n_k Chebyshev wavenumbers; by
+    default (6, 1) for up to 3 branches and (8, 2) beyond (veering higher modes
+    need a richer basis: 2e-6 -> 2e-8 in c_g for CFRP up to 2 MHz).
+    """
     lam0 = sla.eigh(cls.A0, eigvals_only=True, check_finite=False)
     lam0[:cls.n_rigid] = 0.0
     n_cut = int(np.sum(lam0 < (1.05 * wmax) ** 2))
@@ -431,6 +436,10 @@ def _reduce(cls: _Class, wmax: float, n_k: int = 6, extra: int = 1, small_k=(),
             return None
     if n_cut == 0:
         return None
+    if n_k is None:
+        n_k = 6 if n_cut <= 3 else 8
+    if extra is None:
+        extra = 1 if n_cut <= 3 else 2
     n_keep = min(n_cut + extra, cls.A0.shape[0])
     kmax = 1.1 * _kmax(cls, wmax, 0)
     vecs = []
