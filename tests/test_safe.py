@@ -221,3 +221,27 @@ def test_non_symmetric_layup_labels():
         assert np.all(a0 < sh0) and np.all(sh0 < s0)          # flexural < quasi-shear < quasi-longitudinal
         assert a0[0] < 0.2 * a0[-1]                            # A0 is dispersive (c_p ~ sqrt(f))
         assert abs(s0[0] / s0[1] - 1) < 1e-3                   # S0 is not, at low frequency
+
+
+@pytest.mark.slow
+def test_many_modes_with_veering_match_full_newton():
+    """Coupled class, many higher modes with veerings (CFRP along 30 deg to 1.5 MHz): the
+    reduced solver (Chebyshev series or per-frequency fallback) matches full Newton."""
+    lam = layup([0, 45, -45, 0, 45, -45, -45, 45, 0, -45, 45, 0], t=1.3333e-4)
+    f = np.linspace(20e3, 1.5e6, 60)
+    m = safe_model(lam, 30.0, fmax_hz=f.max())
+    d = safe.dispersion_from_model(m, f)
+    assert len(d.modes) >= 8
+    rows = {r["label"]: r for r in safe._branch_table(m, 2 * np.pi * f.max())}
+    n = 0
+    for mode in d.modes:
+        r = rows[mode.label]
+        for i in range(0, len(f), 7):
+            k = mode.wavenumber_rad_m[i]
+            if not np.isfinite(k):
+                continue
+            kf, cg = safe._solve_full(m.classes[r["ci"]], 2 * np.pi * f[i], r["j"], k)
+            assert abs(k / kf - 1) < 1e-7, (mode.label, f[i])
+            assert abs(mode.group_velocity_m_s[i] / cg - 1) < 1e-6, (mode.label, f[i])
+            n += 1
+    assert n > 40
