@@ -79,7 +79,8 @@ from .laminate import Laminate, stiffness_3d
 
 __all__ = [
     "ModeCurve", "Dispersion", "SafeModel", "SafeError",
-    "safe_model", "dispersion", "group_velocity", "default_discretisation",
+    "safe_model", "dispersion", "dispersion_from_model", "group_velocity", "default_discretisation",
+    "bond_matrix",
 ]
 
 TWO_PI = 2.0 * np.pi

@@ -41,7 +41,7 @@ def _check(args) -> None:
 
 
 def run(args) -> dict:
-    from engine.safe import SafeError, dispersion, safe_model
+    from engine.safe import SafeError, dispersion_from_model, safe_model
 
     from .specimen import load_specimen
 
@@ -50,8 +50,7 @@ def run(args) -> dict:
     f = np.arange(1, args.n + 1) * args.fmax / args.n
     try:
         model = safe_model(spec.laminate, args.direction_deg, fmax_hz=args.fmax)
-        d = dispersion(spec.laminate, f, args.direction_deg, order=model.order,
-                       elements_per_ply=model.elements_per_ply)
+        d = dispersion_from_model(model, f)
     except SafeError as e:
         raise UserError(str(e), file=spec.source) from None
     modes = []
