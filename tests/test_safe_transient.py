@@ -123,3 +123,12 @@ def test_bad_arguments():
         transient_response(AL_PLATE, 0.2, f, 1e6, 100, modes=("A9",))
     with pytest.raises(SafeError):
         hammer_force(0.0)
+
+
+def test_point_source_strain_is_du_dr():
+    """Averaging over a short sensor converges to the point strain as L^2 (exact d/dr of u_r)."""
+    f = np.array([100e3, 800e3])
+    h0 = mode_transfer(AL_PLATE, 0.05, f, quantity="strain", source="point", modes=("A0",))["A0"]
+    e = [np.max(np.abs(mode_transfer(AL_PLATE, 0.05, f, quantity="strain", source="point", modes=("A0",),
+                                     sensor_length_m=L)["A0"] / h0 - 1)) for L in (1e-3, 1e-4)]
+    assert e[1] < 2e-2 * e[0] and e[1] < 1e-2      # ratio 100 for a 10x shorter sensor
