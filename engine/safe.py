@@ -57,13 +57,27 @@ wavenumber root, which has c_g >= 0, is reported.
 
 Numerics
 --------
-At each k the eigenproblem is solved in Cholesky-reduced standard form. For a
-frequency grid the wavenumbers are found by Newton's method on
-``w_j(k)^2 = w^2`` using the eigenvector group velocity, in a Rayleigh-Ritz
-reduced space spanned by the eigenvectors of the class at a few wavenumbers
-(Chebyshev points on [0, k_max]); the Ritz frequencies converge quadratically
-in the basis error, so the reduced model reproduces the full SAFE model far
-below the discretisation error (checked in tests).
+Per uncoupled class, in Cholesky-reduced standard form (M = I):
+
+1. Rayleigh-Ritz basis: the eigenvectors of the lowest branches at a few
+   Chebyshev wavenumbers on [0, k_max] (k_max: where the lowest branch
+   reaches the top frequency). The Ritz frequencies converge quadratically
+   in the basis error; checked against full Newton solves in the tests.
+2. Each branch w_j(k)^2 and its eigenvector slope phi^T K'(k) phi are
+   sampled on nested Chebyshev-Lobatto nodes (33 ... 257) until the
+   Chebyshev tail is below 1e-11; within a class branches never cross, so
+   sorting gives the branch index.
+3. Each requested frequency: Newton on the Chebyshev series of w_j(k)^2
+   (largest root), group velocity = interpolated eigenvector slope / (2 w).
+   Branches whose series does not converge (sharp veerings) fall back to one
+   reduced eigen-solve per frequency with a second-order (perturbation
+   theory) Newton step.
+
+Accuracy is limited by round-off at very low frequency (eigenvalues w^2 are
+small next to the largest of the model): ~1e-7 relative in c_g at 1 kHz for
+the 1.6 mm CFRP, 1e-8 and better above 5 kHz. A complex (viscoelastic) C
+would make K0, K1~, K2 complex symmetric: steps 1-3 would then need a
+non-Hermitian eigensolver (not implemented).
 """
 from __future__ import annotations
 
