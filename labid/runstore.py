@@ -163,6 +163,7 @@ class RunStore:
         if self.mode != "a":
             raise UserError("run file opened read-only", file=str(self.path))
         if self._swmr:
+            self._handles = (None,)
             self._f.close()
             self._f = h5py.File(self.path, "a", libver="latest")
             self._swmr = False
@@ -176,6 +177,7 @@ class RunStore:
         return self._f
 
     def close(self) -> None:
+        self._handles = (None,)
         if self._f is not None:
             if self.mode == "a":
                 self._f.flush()
@@ -269,7 +271,8 @@ class RunStore:
                  "meta": (f"S{_META_LEN}", ()), "committed": ("i8", ())}
         for name, (dt, extra) in specs.items():
             ds = g.create_dataset(name, shape=(0, *extra), maxshape=(None, *extra), dtype=dt,
-                                  chunks=(64, *extra), compression="gzip" if name == "meta" else None)
+                                  chunks=(4 if name == "meta" else 64, *extra),
+                                  compression="gzip" if name == "meta" else None)
         g["timestamp"].attrs["units"] = "s"
         g["overload"].attrs["columns"] = json.dumps([c.name for c in channels])
         f.flush()
@@ -284,10 +287,10 @@ class RunStore:
         if kind not in self._f["shots"]:
             self.declare(kind, record.channels, record.timing, record.trigger)
         f = self._swmr_on()
-        g = f["shots"][kind]
+        g, cols = self._table(kind)
         n = g["committed"].shape[0]
         names = [c.name for c in record.channels]
-        if json.loads(g["overload"].attrs["columns"]) != names:
+        if cols != names:
             raise UserError(f"record channels {names} differ from the recorded table",
                             file=str(self.path), key=f"shots/{kind}")
         meta = json.dumps(record.meta, default=_json_default).encode()
@@ -314,6 +317,15 @@ class RunStore:
         ds[n] = n + 1
         f.flush()
         return f"{kind}_{n + 1:04d}"
+
+    def _table(self, kind: str) -> tuple[dict, list[str]]:
+        """Dataset handles of a shot table (cached while the file stays open)."""
+        key = kind
+        if getattr(self, "_handles", (None,))[0] != key:
+            g = self._f["shots"][kind]
+            self._handles = (key, ({name: ds for name, ds in g.items()},
+                                   json.loads(g["overload"].attrs["columns"])))
+        return self._handles[1]
 
     def n_shots(self, kind: str | None = None) -> int:
         kinds = [kind] if kind else list(self._f["shots"])
