@@ -96,8 +96,9 @@ class AcquisitionSession:
                                 "use --backend mock to run on the simulated rig", key="--backend") from None
             daq = spec.daq_device or next((c.physical.split("/")[0] for c in spec.channels
                                            if "/" in c.physical), "Dev1")
-            dev = NiDaqDevice(spec.name, daq)
         try:
+            if self.backend == "nidaqmx":
+                dev = NiDaqDevice(spec.name, daq)
             dev.configure(spec.channels, spec.timing, spec.trigger)
         except AcquisitionError as e:
             raise UserError(str(e), file=self.rig.source, key=f"devices.{spec.name}") from None

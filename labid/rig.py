@@ -131,6 +131,25 @@ class Rig:
     def accelerometers(self) -> tuple[ChannelConfig, ...]:
         return tuple(c for d in self.devices for c in d.channels if c.kind == "accelerometer")
 
+    def features(self) -> dict:
+        """The rig block of the measured-features file (CONTRACT section 2).
+
+        ``wave_path_m``: the spacing of the two outermost wave sensors (arrival
+        time differences, as with a pencil-lead break), or the distance of the
+        only one from the source. ``temperature_c`` is not known to the rig.
+        """
+        d = sorted(w.distance_m for w in self.wave_sensors)
+        out: dict = {
+            "accelerometers": [{"x": c.x, "y": c.y, "mass_kg": c.mass_kg} for c in self.accelerometers],
+            "supports": [{"x": x, "y": y} for x, y in self.supports],
+        }
+        if d:
+            out["wave_path_m"] = d[-1] - d[0] if len(d) > 1 else d[0]
+            out["sensor_length_m"] = max(w.length_m for w in self.wave_sensors)
+            out["wave_sensors"] = [{"channel": w.channel, "distance_m": w.distance_m,
+                                    "direction_deg": w.direction_deg} for w in self.wave_sensors]
+        return out
+
     def check_specimen(self, length: float, width: float) -> None:
         """Every position on the plate must lie within it (UserError otherwise)."""
         pts = [("hammer", self.hammer.x, self.hammer.y),

@@ -214,3 +214,10 @@ def test_documented_example_rig_parses():
     rig = rig_from_text(example, "docs example")
     assert rig.device("wave").trigger.channel == "hammer_hf"
     assert rig.wave_sensor("strain1").distance_m == 0.375
+
+
+def test_rig_features_block_follows_the_contract():
+    f = load_rig().features()
+    assert [a["mass_kg"] for a in f["accelerometers"]] == [0.002] * 3
+    assert f["supports"][0] == {"x": 0.03, "y": 0.33}
+    assert f["wave_path_m"] == pytest.approx(0.15) and f["sensor_length_m"] == 0.0
