@@ -346,6 +346,9 @@ def _class_bases(z: np.ndarray, mats, tol=1e-12):
     return [("all", np.eye(3 * n), 3)], parity, sh
 
 
+_CLASS_CACHE: dict = {}
+
+
 def safe_model(laminate: Laminate, direction_deg: float = 0.0, *, order: int | None = None,
                elements_per_ply: int | None = None, fmax_hz: float = 1e6) -> SafeModel:
     """Assemble the SAFE model (K0, K1~, K2, M and the uncoupled classes).
@@ -359,7 +362,16 @@ def safe_model(laminate: Laminate, direction_deg: float = 0.0, *, order: int | N
     if order < 1 or epp < 1:
         raise SafeError(f"order={order}, elements_per_ply={epp}: expected integers >= 1")
     z, K0, K1, K2, M = _assemble(laminate, float(direction_deg), order, epp)
-    found, parity, sh = _class_bases(z, (K0, K1, K2, M))
+    # the class structure depends on the layup pattern only, not on the constants
+    key = (tuple((p.material.name, p.angle_deg, p.thickness) for p in laminate.plies),
+           float(direction_deg), order, epp)
+    found = _CLASS_CACHE.get(key)
+    if found is None:
+        found = _class_bases(z, (K0, K1, K2, M))
+        if len(_CLASS_CACHE) > 64:
+            _CLASS_CACHE.pop(next(iter(_CLASS_CACHE)))
+        _CLASS_CACHE[key] = found
+    found, parity, sh = found
     classes = []
     for kind, Q, n_rigid in found:
         Mc = Q.T @ M @ Q
@@ -442,9 +454,12 @@ def _reduce(cls: _Class, wmax: float, n_k: int | None = None, extra: int | None 
     default (6, 1) for up to 3 branches and (8, 2) beyond (veering higher modes
     need a richer basis: 2e-6 -> 2e-8 in c_g for CFRP up to 2 MHz).
     """
-    lam0 = sla.eigh(cls.A0, eigvals_only=True, check_finite=False)
-    lam0[:cls.n_rigid] = 0.0
-    n_cut = int(np.sum(lam0 < (1.05 * wmax) ** 2))
+    if n_branches is not None and n_branches <= cls.n_rigid:
+        n_cut = n_branches                   # zero cut-off branches only: no count needed
+    else:
+        lam0 = sla.eigh(cls.A0, eigvals_only=True, check_finite=False)
+        lam0[:cls.n_rigid] = 0.0
+        n_cut = int(np.sum(lam0 < (1.05 * wmax) ** 2))
     if n_branches is not None:
         n_cut = min(max(n_cut, 0), n_branches)
         if n_cut == 0:
@@ -751,10 +766,21 @@ def _mirror_even(z: np.ndarray, f: np.ndarray) -> bool:
     return float(np.sum(f * g)) >= 0.0
 
 
+_FUND = {"S": ["S0"], "A": ["A0"], "SHs": ["SH0"], "SHa": [], "sym": ["SH0", "S0"],
+         "anti": ["A0"], "lamb": ["A0", "S0"], "sh": ["SH0"], "all": ["A0", "SH0", "S0"]}
+_FUND_ORDER = {"A0": 0, "S0": 1, "SH0": 2}
+
+
+def _fundamental_rows(model: SafeModel):
+    """Rows of the three zero-cut-off modes, found from the class kinds alone."""
+    rows = [dict(ci=ci, j=j, family=None, label=lbl, cutoff=0.0)
+            for ci, cls in enumerate(model.classes) for j, lbl in enumerate(_FUND[cls.kind])]
+    return sorted(rows, key=lambda r: _FUND_ORDER[r["label"]])
+
+
 def _branch_table(model: SafeModel, wmax: float):
     """All branches below wmax: list of dicts (class index, branch, family, cutoff)."""
-    fund = {"S": ["S0"], "A": ["A0"], "SHs": ["SH0"], "SHa": [], "sym": ["SH0", "S0"],
-            "anti": ["A0"], "lamb": ["A0", "S0"], "sh": ["SH0"], "all": ["A0", "SH0", "S0"]}
+    fund = _FUND
     rows = []
     for ci, cls in enumerate(model.classes):
         lam, vec = sla.eigh(cls.A0, check_finite=False)
@@ -816,7 +842,10 @@ def dispersion_from_model(model: SafeModel, frequency_hz, *, labels: tuple[str, 
     f = _check_freq(frequency_hz)
     w = TWO_PI * f
     wmax = float(np.max(w))
-    rows = _branch_table(model, wmax)
+    if labels is not None and set(labels) <= set(_FUND_ORDER):
+        rows = [r for r in _fundamental_rows(model) if r["label"] in labels]
+    else:
+        rows = _branch_table(model, wmax)
     if labels is not None:
         missing = set(labels) - {r["label"] for r in rows}
         if missing:
