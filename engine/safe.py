@@ -664,12 +664,6 @@ def _sample(red: _Reduced, ks: np.ndarray, nb: int, probes=None, values_only: bo
     return out
 
 
-def _cheb_eval(c: np.ndarray, k: np.ndarray, kmax: float) -> np.ndarray:
-    """Evaluate series c (n+1,) or (n+1, m) at k (Clenshaw)."""
-    x = 1.0 - 2.0 * k / kmax
-    return np.polynomial.chebyshev.chebval(x, c)
-
-
 def _chop(c: np.ndarray, rel: float = 1e-16) -> np.ndarray:
     """Drop trailing Chebyshev coefficients below rel * max (axis 0)."""
     a = np.abs(c) if c.ndim == 1 else np.max(np.abs(c), axis=tuple(range(1, c.ndim)))

@@ -44,7 +44,7 @@ from scipy.fft import irfft, next_fast_len
 
 from .laminate import Laminate
 from .safe import (TWO_PI, SafeError, _branch_table, _cheb_branches, _dense_table, _invert_table,
-                   _reduce, _roots_from_series, safe_model)
+                   _reduce, safe_model)
 
 __all__ = ["ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst",
            "mode_transfer", "transient_response", "QUANTITIES"]
