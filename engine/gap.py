@@ -40,7 +40,7 @@ from scipy import stats
 from .gap_forward import EFFECTS, ForwardModel, GapError, GapProblem
 from .identify import DataBlock, Prior, estimate, whitened_jacobian
 
-__all__ = ["GapOptions", "diagnose", "feature_labels", "GapError"]
+__all__ = ["GapOptions", "diagnose", "gap_test", "feature_labels", "GapError"]
 
 
 @dataclass(frozen=True)
@@ -50,12 +50,12 @@ class GapOptions:
     alpha: float = 0.01
     accept_alpha: float = 0.001
     prior_rel_std: float = 0.3
-    model_rel_sigma: tuple[float, float] = (5e-5, 2e-4)   # (modal, waves) relative
+    model_rel_sigma: tuple[float, float] = (1.5e-4, 2e-4)   # (modal, waves) relative
     detect_sigma: float = 3.0
-    top_k: int = 3
+    top_k: int = 4
     confusable_dchi2: float = 4.0
     candidates: tuple[str, ...] = tuple(EFFECTS)
-    gn_iter: int = 6
+    gn_iter: int = 15
 
 
 # ---------------------------------------------------------------- helpers --
@@ -192,6 +192,23 @@ def _held_out(r: np.ndarray, J: np.ndarray, w: np.ndarray, dtheta_prior: np.ndar
     return float(np.sqrt(np.mean(h ** 2)))
 
 
+def gap_test(r: np.ndarray, J: np.ndarray, w: np.ndarray, alpha: float) -> dict:
+    """Chi^2 test of whitened residuals r of a (prior-regularised) least-squares fit.
+
+    J: whitened Jacobian (n, k) at the fit; w: prior sqrt-precisions (k,).
+    Degrees of freedom n - trace(H), H = J (J'J + diag(w^2))^-1 J'; a gap is
+    significant when P(chi^2_dof >= r'r) < alpha (the false-alarm rate).
+    """
+    r = np.asarray(r, float)
+    n = len(r)
+    A = J.T @ J + np.diag(np.asarray(w, float) ** 2)
+    dof = max(n - float(np.trace(J @ np.linalg.solve(A, J.T))), 1.0)
+    chi = float(r @ r)
+    p = float(stats.chi2.sf(chi, dof))
+    return {"chi2": chi, "dof": dof, "p_value": p, "threshold": float(stats.chi2.isf(alpha, dof)),
+            "significant": bool(p < alpha)}
+
+
 # ---------------------------------------------------------------- diagnosis --
 class _Fit:
     """Whitened residual machinery around one forward model."""
@@ -284,13 +301,9 @@ def diagnose(problem: GapProblem, options: GapOptions | None = None,
     r0 = F.residual(p_hat, {})
     n = len(r0)
     k = len(names)
-    Aprior = J.T @ J + np.diag(w ** 2)
-    Ainv = np.linalg.inv(Aprior)
-    dof = max(n - float(np.trace(J @ Ainv @ J.T)), 1.0)
-    chi0 = float(r0 @ r0)
-    p0 = float(stats.chi2.sf(chi0, dof))
-    threshold = float(stats.chi2.isf(opts.alpha, dof))
-    significant = p0 < opts.alpha
+    test = gap_test(r0, J, w, opts.alpha)
+    dof, chi0, p0 = test["dof"], test["chi2"], test["p_value"]
+    threshold, significant = test["threshold"], test["significant"]
 
     labels = feature_labels(problem)
     families = None
@@ -340,8 +353,10 @@ def diagnose(problem: GapProblem, options: GapOptions | None = None,
     # joint refits of the top candidates
     ranked = sorted([c for c in cand if "error" not in c and c["detectable"]],
                     key=lambda c: c["chi2_linear"])
-    for c in ranked[:opts.top_k]:
-        _refit(c, F, problem, J, w, theta_hat, theta_nom, r0, folds)
+    if ranked:
+        Jnom = F.jacobian(nominal, {})
+        for c in ranked[:opts.top_k]:
+            _refit(c, F, problem, Jnom, w, theta_nom, folds)
 
     refit = [c for c in cand if "chi2" in c]
     refit.sort(key=lambda c: c["chi2"])
@@ -377,7 +392,7 @@ def diagnose(problem: GapProblem, options: GapOptions | None = None,
             "held_out_after": c.get("held_out_after"), "detectable": c["detectable"],
             "absorbed_fraction": float(c["absorbed_fraction"]),
             "bias_in_constants_per_unit": c["bias_in_constants_per_unit"],
-            "constants_after": c.get("constants"),
+            "constants_after": c.get("constants"), "iterations": c.get("iterations"),
         })
     chosen = next((c for c in refit if c["name"] == verdict), None)
     after_r = chosen["_r"] if chosen is not None else r0
@@ -415,26 +430,33 @@ def diagnose(problem: GapProblem, options: GapOptions | None = None,
                      "modality": [lb["modality"] for lb in labels],
                      "set": [lb["set"] for lb in labels],
                      "residual_before": r0.tolist(), "residual_after": after_r.tolist(),
+                     "sigma": F.sigma.tolist(),
                      "mode_families": families},
         "identification": {"converged": bool(est.converged), "message": est.message},
     }
     return out
 
 
-def _refit(c: dict, F: _Fit, problem: GapProblem, J: np.ndarray, w: np.ndarray,
-           theta_hat: np.ndarray, theta_nom: np.ndarray, r0: np.ndarray, folds) -> None:
-    """Joint Gauss-Newton fit of constants (frozen Jacobian J) and one effect; fills c."""
+def _refit(c: dict, F: _Fit, problem: GapProblem, Jnom: np.ndarray, w: np.ndarray,
+           theta_nom: np.ndarray, folds) -> None:
+    """Joint fit of the constants and one effect; fills c.
+
+    Levenberg-Marquardt on the nonlinear whitened residuals, from the nominal
+    constants and the linear estimate of the effect, with the constants'
+    Jacobian frozen at the nominal point (``Jnom``; the true constants lie
+    within tens of per cent of nominal) and the effect's column re-evaluated
+    by a secant at every iterate. Covariance from the final Gauss-Newton matrix.
+    """
     name = c["name"]
     spec = EFFECTS[name]
     names = F.names
-    a_ref = _reference(name, problem)
-    a = float(np.clip(c["magnitude_linear"], spec.lo, spec.hi))
-    theta = theta_hat.copy()
     k = len(names)
-    h = spec.typical * 0.25
+    h = 0.1 * spec.typical
+    a = float(np.clip(c["magnitude_linear"], spec.lo, spec.hi))
+    theta = theta_nom.copy()
 
     def resid(th, a_):
-        return F.residual(_unpack(np.exp(th), names), {name: a_} if a_ != 0 else {})
+        return F.residual(_unpack(np.exp(th), names), {name: a_})
 
     def col(th, a_, r_):
         step = h if a_ + h <= spec.hi else -h
@@ -442,52 +464,58 @@ def _refit(c: dict, F: _Fit, problem: GapProblem, J: np.ndarray, w: np.ndarray,
 
     try:
         r = resid(theta, a)
-    except ValueError:
-        a, r = a_ref, r0.copy()
-    cost = float(r @ r + np.sum((w * (theta - theta_nom)) ** 2))
-    for outer in range(2):
-        J = F.jacobian(_unpack(np.exp(theta), names), {name: a})
         s = col(theta, a, r)
-        moved = False
-        for _ in range(F.opts.gn_iter):
-            A = np.vstack([np.column_stack([J, s]),
-                           np.column_stack([np.diag(w), np.zeros(k)])])
-            b = np.concatenate([r, w * (theta - theta_nom)])
-            d = -np.linalg.lstsq(A, b, rcond=1e-12)[0]
-            lam = 1.0
-            ok = False
-            for _ in range(6):
-                th_new = theta + lam * d[:k]
-                a_new = float(np.clip(a + lam * d[k], spec.lo, spec.hi))
-                try:
-                    r_new = resid(th_new, a_new)
-                except ValueError:
-                    lam *= 0.5
-                    continue
-                c_new = float(r_new @ r_new + np.sum((w * (th_new - theta_nom)) ** 2))
-                if c_new <= cost:
-                    ok = True
-                    break
-                lam *= 0.5
-            if not ok:
+    except ValueError as exc:
+        c.update({"error": f"refit failed: {exc}"})
+        return
+    cost = float(r @ r)
+    mu = 1e-3
+    it = 0
+    converged = False
+    for it in range(1, F.opts.gn_iter + 1):
+        A = np.vstack([np.column_stack([Jnom, s]), np.column_stack([np.diag(w), np.zeros(k)])])
+        b = np.concatenate([r, w * (theta - theta_nom)])
+        M, g = A.T @ A, A.T @ b
+        D = np.diag(np.maximum(np.diag(M), 1e-12 * np.max(np.diag(M))))
+        ok = False
+        for _ in range(10):
+            try:
+                d = -np.linalg.solve(M + mu * D, g)
+            except np.linalg.LinAlgError:
+                mu *= 10
+                continue
+            th_new = theta + np.clip(d[:k], -0.5, 0.5)
+            a_new = float(np.clip(a + d[k], spec.lo, spec.hi))
+            try:
+                r_new = resid(th_new, a_new)
+            except ValueError:
+                mu *= 10
+                continue
+            c_new = float(r_new @ r_new + np.sum((w * (th_new - theta_nom)) ** 2))
+            if c_new < cost + float(np.sum((w * (theta - theta_nom)) ** 2)) or c_new == 0:
+                ok = True
                 break
-            gain = cost - c_new
-            theta, a, r, cost = th_new, a_new, r_new, c_new
-            moved = moved or gain > 1.0
-            if gain < 1e-3 * max(1.0, cost):
-                break
-            s = col(theta, a, r)
-        if not moved:
+            mu *= 4
+        if not ok:
+            converged = True   # no decrease possible: at the minimum (to the frozen Jacobian)
             break
-    Jf = np.column_stack([J, s])
+        gain = cost + float(np.sum((w * (theta - theta_nom)) ** 2)) - c_new
+        theta, a, r = th_new, a_new, r_new
+        cost = float(r @ r)
+        mu = max(mu / 3, 1e-9)
+        s = col(theta, a, r)
+        if gain < 1e-3 * max(1.0, cost):
+            converged = True
+            break
+    Jf = np.column_stack([Jnom, s])
     A = Jf.T @ Jf + np.diag(np.concatenate([w ** 2, [0.0]]))
     try:
-        cov = np.linalg.inv(A)
-        std = float(math.sqrt(max(cov[k, k], 0.0)))
+        std = float(math.sqrt(max(np.linalg.inv(A)[k, k], 0.0)))
     except np.linalg.LinAlgError:
         std = float("inf")
     c.update({
-        "magnitude": a, "std": std, "chi2": float(r @ r), "_r": r,
+        "iterations": it, "converged": converged,
+        "magnitude": float(a), "std": std, "chi2": float(r @ r), "_r": r,
         "constants": _unpack(np.exp(theta), names),
         "held_out_after": _held_out(r, Jf, w, theta - theta_nom, folds),
     })

@@ -93,7 +93,8 @@ def _shape_points() -> np.ndarray:
 
 
 def _soft_patch_model(model, params, x0: float, y0: float, size: float, loss: float):
-    """PlateModel whose elements with centres inside the square lose ``loss`` of their stiffness.
+    """PlateModel whose stiffness inside the square drops by ``loss`` (each element by
+    ``loss`` times the fraction of its area inside the square).
 
     Uses the model's precomputed parts (element stiffness = combination of the
     unit element matrices), a test-generator hook outside the diagnoser's library.
@@ -103,19 +104,24 @@ def _soft_patch_model(model, params, x0: float, y0: float, size: float, loss: fl
     Kc = np.tensordot(c, model._Ke, axes=(0, 1)).reshape(6, 6400)
     Ke_type = pat.type_scales @ Kc                       # (n_types, 6400)
     xe, ye = model.mesh.xe, model.mesh.ye
-    cx = 0.5 * (xe[1:] + xe[:-1])
-    cy = 0.5 * (ye[1:] + ye[:-1])
+    ox = np.clip(np.minimum(xe[1:], x0 + size / 2) - np.maximum(xe[:-1], x0 - size / 2), 0, None) / np.diff(xe)
+    oy = np.clip(np.minimum(ye[1:], y0 + size / 2) - np.maximum(ye[:-1], y0 - size / 2), 0, None) / np.diff(ye)
     add = model._k_add.copy()
-    for ey in range(model.mesh.ny):
-        for ex in range(model.mesh.nx):
-            if abs(cx[ex] - x0) <= size / 2 and abs(cy[ey] - y0) <= size / 2:
-                e = ey * model.mesh.nx + ex
-                np.add.at(add, pat.elem_pos[e], -loss * Ke_type[pat.elem_type[e]])
+    for ey in np.flatnonzero(oy):
+        for ex in np.flatnonzero(ox):
+            e = ey * model.mesh.nx + ex     # element loses loss x (overlapped area fraction)
+            np.add.at(add, pat.elem_pos[e], -loss * ox[ex] * oy[ey] * Ke_type[pat.elem_type[e]])
     return model._derived(k_add=add)
 
 
-def draw_case(seed: int, kind: str | None = None, outside: bool = False) -> BlindCase:
-    """Draw a case from ``seed`` (``kind`` forces the condition; see KINDS)."""
+def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
+              wave_sets=WAVE_SETS, mesh=None) -> BlindCase:
+    """Draw a case from ``seed`` (``kind`` forces the condition; see KINDS).
+
+    ``wave_sets``: (mode, direction_deg, n_frequencies) of the measured wave
+    sets (empty: modal only); ``mesh``: plate mesh of the generator (None:
+    default; ``outside`` overrides it with a finer one).
+    """
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 7]))
     kind = kind or KINDS[int(rng.integers(len(KINDS)))]
     if kind not in KINDS:
@@ -132,13 +138,12 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False) -> Blin
         mag = float(rng.uniform(lo, hi)) * (float(rng.choice([-1.0, 1.0])) if signed else 1.0)
     rig = RigLayout(ACCELEROMETERS, SUPPORTS, WAVE_PATH_M, SENSOR_LENGTH_M, 23.0)
     waves = tuple(WaveData(m, d, np.geomspace(*F_WAVES, n), np.ones(n), np.ones(n))
-                  for m, d, n in WAVE_SETS)
+                  for m, d, n in wave_sets)
     true_lam = lam
     if kind == "ply_angle":
         true_lam = Laminate(tuple(Ply(p.material, p.angle_deg + mag, p.thickness) for p in lam.plies))
     problem = GapProblem(true_lam, length, width, rig,
                          ModalData(np.ones(N_MODES), np.ones(N_MODES)), waves)
-    mesh = None
     if outside:
         from engine.plate_fe import Mesh
         mesh = Mesh.default(length, width, lam.thickness, n=9)
