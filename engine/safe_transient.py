@@ -226,7 +226,7 @@ def _mode_data(model, wmax: float, labels, strict: bool = True):
         rs = [r for r in rows if r["ci"] == ci]
         cls = model.classes[ci]
         nb = max(r["j"] for r in rs) + 1
-        red = _reduce(cls, wmax, n_branches=nb, n_k=6, extra=1)   # phase accuracy ~1e-2 rad at 0.3 m suffices
+        red = _reduce(cls, wmax, n_branches=nb, n_k=5, extra=1)   # phase error <~2e-2 rad at 0.3 m
         if red is None:
             continue
         probes = (cls.to_phys[[top, top + 2], :] @ red.basis)     # (2, r): phi_u, phi_w at the top
