@@ -26,12 +26,16 @@ dies. A shot counts only once its row of ``committed`` is written and flushed;
 rows past it (a shot cut short) are dropped on reopening. A file left with the
 "open for writing" flags by a killed writer is repaired on the next ``"a"``
 open by copying it (read through SWMR) to a fresh file, atomically renamed over
-the old one; a ``"r"`` open reads it through SWMR without touching it.
+the old one; a ``"r"`` open reads it through SWMR without touching it. A writer
+killed outside SWMR mode (creating a table, writing results: not crash-safe,
+but flushed after each change) leaves the flags without SWMR; such a file is
+read from a copy whose superblock flags are cleared (checksum recomputed).
 """
 from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -68,14 +72,94 @@ def _copy_attrs(src, dst) -> None:
         dst.attrs[k] = v
 
 
+_M32 = 0xFFFFFFFF
+
+
+def _rot(x, k):
+    return ((x << k) | (x >> (32 - k))) & _M32
+
+
+def _lookup3(data: bytes, initval: int = 0) -> int:
+    """Bob Jenkins' lookup3 hashlittle, byte-wise (HDF5 H5_checksum_lookup3)."""
+    n = len(data)
+    a = b = c = (0xDEADBEEF + n + initval) & _M32
+    i = 0
+    while n > 12:
+        k = data[i:i + 12]
+        a = (a + int.from_bytes(k[0:4], "little")) & _M32
+        b = (b + int.from_bytes(k[4:8], "little")) & _M32
+        c = (c + int.from_bytes(k[8:12], "little")) & _M32
+        a = (a - c) & _M32; a ^= _rot(c, 4); c = (c + b) & _M32
+        b = (b - a) & _M32; b ^= _rot(a, 6); a = (a + c) & _M32
+        c = (c - b) & _M32; c ^= _rot(b, 8); b = (b + a) & _M32
+        a = (a - c) & _M32; a ^= _rot(c, 16); c = (c + b) & _M32
+        b = (b - a) & _M32; b ^= _rot(a, 19); a = (a + c) & _M32
+        c = (c - b) & _M32; c ^= _rot(b, 4); b = (b + a) & _M32
+        n -= 12
+        i += 12
+    if n == 0:
+        return c
+    k = data[i:i + n] + bytes(12 - n)
+    a = (a + int.from_bytes(k[0:4], "little")) & _M32
+    b = (b + int.from_bytes(k[4:8], "little")) & _M32
+    c = (c + int.from_bytes(k[8:12], "little")) & _M32
+    c ^= b; c = (c - _rot(b, 14)) & _M32
+    a ^= c; a = (a - _rot(c, 11)) & _M32
+    b ^= a; b = (b - _rot(a, 25)) & _M32
+    c ^= b; c = (c - _rot(b, 16)) & _M32
+    a ^= c; a = (a - _rot(c, 4)) & _M32
+    b ^= a; b = (b - _rot(a, 14)) & _M32
+    c ^= b; c = (c - _rot(b, 24)) & _M32
+    return c
+
+
+def _cleared_copy(path: Path) -> Path:
+    """A copy of ``path`` with the superblock's "open for writing" flags cleared.
+
+    A writer killed outside SWMR mode (while it created tables or wrote results)
+    leaves these flags set; nothing but the flags is wrong once its last flush
+    completed. Superblock v2/v3: flags at byte 11, lookup3 checksum after
+    12 + 4 * sizeof(offsets) bytes.
+    """
+    tmp = path.with_name(path.name + ".unlocked")
+    shutil.copyfile(path, tmp)
+    with open(tmp, "r+b") as fh:
+        head = bytearray(fh.read(64))
+        if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] not in (2, 3):
+            tmp.unlink()
+            raise OSError(f"{path}: not an HDF5 file with a version 2/3 superblock")
+        n = 12 + 4 * head[9]
+        head[11] = 0
+        fh.seek(11)
+        fh.write(b"\x00")
+        fh.seek(n)
+        fh.write(_lookup3(bytes(head[:n])).to_bytes(4, "little"))
+    return tmp
+
+
+def _open_flagged(path: Path) -> tuple[h5py.File, Path | None]:
+    """Read-only view of a file left open by a killed writer: (file, temporary copy or None)."""
+    try:
+        return h5py.File(path, "r", swmr=True), None
+    except OSError:
+        tmp = _cleared_copy(path)
+        return h5py.File(tmp, "r"), tmp
+
+
 def _repair(path: Path) -> None:
-    """Rewrite a file left open by a killed SWMR writer into a clean copy."""
+    """Rewrite a file left open by a killed writer into a clean copy."""
     tmp = path.with_name(path.name + ".repair")
-    with h5py.File(path, "r", swmr=True) as src, h5py.File(tmp, "w", libver="latest") as dst:
-        _copy_attrs(src, dst)
-        for name in src:
-            src.copy(src[name], dst, name)
-        dst.flush()
+    src, unlocked = _open_flagged(path)
+    try:
+        with h5py.File(tmp, "w", libver="latest") as dst:
+            _copy_attrs(src, dst)
+            for name in src:
+                src.copy(src[name], dst, name)
+            dst.flush()
+    finally:
+        src.close()
+        if unlocked:
+            unlocked.unlink()
     os.replace(tmp, path)
 
 
@@ -100,6 +184,8 @@ class RunStore:
         self.path = Path(path)
         self.mode = mode
         self._swmr = False
+        self._live = False          # read-only view of a file a writer may still be appending to
+        self._unlocked: Path | None = None
         self._f: h5py.File | None = None
         if mode == "r":
             if not self.path.exists():
@@ -109,28 +195,36 @@ class RunStore:
             except OSError as e:
                 if not _is_consistency_flag_error(e):
                     raise UserError(f"not a readable HDF5 run file ({e})", file=str(self.path)) from None
-                self._f = h5py.File(self.path, "r", swmr=True)
+                self._f, self._unlocked = _open_flagged(self.path)
+                self._live = self._unlocked is None
             self._check_schema()
             return
         if self.path.exists():
             self._f = self._open_append()
             self._check_schema()
             self._drop_uncommitted()
-        else:
+        else:                      # created complete under a temporary name, then renamed
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._f = h5py.File(self.path, "w", libver="latest")
-            a = self._f.attrs
-            a["NX_class"] = "NXroot"
-            a["labid_schema"] = SCHEMA
-            a["creator"] = f"labid {software_version()}"
-            a["file_name"] = self.path.name
-            a["file_time"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-            a["HDF5_Version"] = h5py.version.hdf5_version
-            a["h5py_version"] = h5py.version.version
-            for name, cls in (("config", "NXcollection"), ("shots", "NXentry"),
-                              ("results", "NXcollection")):
-                self._f.create_group(name).attrs["NX_class"] = cls
-            self._f.flush()
+            tmp = self.path.with_name(self.path.name + ".new")
+            with h5py.File(tmp, "w", libver="latest") as f:
+                self._init(f, self.path.name)
+            os.replace(tmp, self.path)
+            self._f = h5py.File(self.path, "a", libver="latest")
+
+    @staticmethod
+    def _init(f: h5py.File, name: str) -> None:
+        """Root attributes and top-level groups of a new run file."""
+        a = f.attrs
+        a["NX_class"] = "NXroot"
+        a["labid_schema"] = SCHEMA
+        a["creator"] = f"labid {software_version()}"
+        a["file_name"] = name
+        a["file_time"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        a["HDF5_Version"] = h5py.version.hdf5_version
+        a["h5py_version"] = h5py.version.version
+        for name, cls in (("config", "NXcollection"), ("shots", "NXentry"),
+                          ("results", "NXcollection")):
+            f.create_group(name).attrs["NX_class"] = cls
 
     # -- opening -------------------------------------------------------
     def _open_append(self) -> h5py.File:
@@ -183,6 +277,9 @@ class RunStore:
                 self._f.flush()
             self._f.close()
             self._f = None
+        if self._unlocked is not None:
+            self._unlocked.unlink(missing_ok=True)
+            self._unlocked = None
 
     def __enter__(self) -> "RunStore":
         return self
@@ -327,7 +424,14 @@ class RunStore:
                                    json.loads(g["overload"].attrs["columns"])))
         return self._handles[1]
 
+    def _refresh(self) -> None:
+        if self._live:
+            for g in self._f["shots"].values():
+                for ds in g.values():
+                    ds.refresh()
+
     def n_shots(self, kind: str | None = None) -> int:
+        self._refresh()
         kinds = [kind] if kind else list(self._f["shots"])
         return sum(self._f["shots"][k]["committed"].shape[0] for k in kinds if k in self._f["shots"])
 
@@ -337,6 +441,7 @@ class RunStore:
         ``meta`` carries ``kind``, ``shot`` (name), ``software_version`` besides
         what the device recorded.
         """
+        self._refresh()
         out: list[Record] = []
         kinds = [kind] if kind else sorted(self._f["shots"])
         for k in kinds:

@@ -154,6 +154,9 @@ def test_sigkill_mid_write_keeps_every_committed_shot(tmp_path):
         out, _ = proc.communicate()
         lines = [ln.split() for ln in out.splitlines() if ln.strip()]
         committed.update(dict(lines))
+        if not p.exists():                 # killed before it created the file
+            assert not committed
+            continue
         with RunStore(p, "r") as s:
             recs = s.shots("hammer")
         assert len(recs) >= len(committed)
@@ -165,3 +168,41 @@ def test_sigkill_mid_write_keeps_every_committed_shot(tmp_path):
             if r.meta["shot"] in committed:
                 assert committed[r.meta["shot"]] == h
     assert len(committed) > 4
+
+
+def test_reader_follows_a_live_writer(tmp_path):
+    """A read-only store opened while a writer appends sees the new committed shots."""
+    p = tmp_path / "run.h5"
+    w = RunStore(p)
+    w.append_shot(record(0), "hammer")
+    r = RunStore(p, "r")
+    assert r.n_shots() == 1
+    w.append_shot(record(1), "hammer")
+    assert r.n_shots() == 2 and r.shots()[1].meta["i"] == 1
+    r.close()
+    w.close()
+
+
+def test_writer_killed_outside_swmr_mode_is_readable_and_repaired(tmp_path):
+    """A writer killed after writing results (normal mode, flags set without SWMR)."""
+    p = tmp_path / "run.h5"
+    with RunStore(p) as s:
+        s.append_shot(record(0), "hammer")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    code = (f"import sys, time; sys.path.insert(0, {root!r})\n"
+            "from labid.runstore import RunStore\n"
+            f"s = RunStore({str(p)!r})\n"
+            "s.write_group('features', {'f': [1.0, 2.0]})\n"
+            "print('ready', flush=True); time.sleep(60)\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "ready"
+    proc.kill()
+    proc.wait()
+    with pytest.raises(OSError, match="consistency flags"):
+        h5py.File(p, "r")
+    with RunStore(p, "r") as s:
+        assert s.n_shots() == 1 and list(s.read_group("features")["f"]) == [1.0, 2.0]
+    with RunStore(p) as s:
+        assert s.append_shot(record(1), "hammer") == "hammer_0002"
+    with h5py.File(p, "r") as f:                 # repaired: opens without help
+        assert f["shots/hammer/committed"].shape == (2,)
