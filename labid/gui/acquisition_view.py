@@ -190,6 +190,7 @@ class AcquisitionView(QWidget):
     def _rig_changed(self, rig) -> None:
         if rig is None:
             return
+        changed = getattr(self, "_rig", None) is None or (self._rig.hits, self._rig.waves) != (rig.hits, rig.waves)
         self._rig = rig
         names = [f"{d.name} ({d.role})" for d in rig.devices]
         cur = self.device_combo.currentIndex()
@@ -199,7 +200,7 @@ class AcquisitionView(QWidget):
         self.device_combo.setCurrentIndex(min(max(cur, 0), len(names) - 1))
         self.device_combo.blockSignals(False)
         self._device_changed()
-        if self.job is None:
+        if self.job is None and changed:      # the rig's session defaults, when they change
             self.hits_spin.setValue(rig.hits)
             self.waves_spin.setValue(rig.waves)
         self._set_lights([c.name for d in rig.devices for c in d.channels])

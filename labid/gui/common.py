@@ -46,4 +46,5 @@ def plot(title: str = "", x: tuple[str, str] = ("", ""), y: tuple[str, str] = ("
         w.setLabel("bottom", x[0], x[1])
     if y[0]:
         w.setLabel("left", y[0], y[1])
+    w.getAxis("left").setWidth(62)
     return w

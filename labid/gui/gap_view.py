@@ -27,6 +27,8 @@ class GapView(QWidget):
         self.verdict.setStyleSheet("font-size: 14pt; font-weight: bold;")
         self.where = QLabel("")
         self.where.setWordWrap(True)
+        self.where.setMinimumHeight(4 * self.where.fontMetrics().height())
+        self.where.setAlignment(Qt.AlignTop | Qt.AlignLeft)
         self.table = QTableWidget(0, 6)
         self.table.setHorizontalHeaderLabels(["rank", "effect", "magnitude", "gap after", "score", "detectable"])
         self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
@@ -43,6 +45,7 @@ class GapView(QWidget):
         left.addWidget(self.table, 1)
         lw = QWidget()
         lw.setLayout(left)
+        lw.setMinimumWidth(470)
         lw.setMaximumWidth(560)
         right = QVBoxLayout()
         right.addWidget(self.resid_plot, 3)
@@ -163,7 +166,9 @@ class GapView(QWidget):
             val = np.array([float(d["chi2"]) / max(int(d["n"]), 1) for d in groups])
             brushes = ["#d62728" if d.get("significant") else "#1f77b4" for d in groups]
             self.group_plot.addItem(pg.BarGraphItem(x0=0, y=y, height=0.7, width=val, brushes=brushes))
-            self.group_plot.getAxis("left").setTicks([[(yy, str(d["group"])) for yy, d in zip(y, groups)]])
+            ax = self.group_plot.getAxis("left")
+            ax.setTicks([[(yy, str(d["group"])) for yy, d in zip(y, groups)]])
+            ax.setWidth(int(7 * max(len(str(d["group"])) for d in groups) + 12))
             self.group_plot.addItem(pg.InfiniteLine(1.0, angle=90, pen=pg.mkPen("k")))
 
     def state(self) -> dict:

@@ -123,6 +123,7 @@ class MainWindow(QMainWindow):
                 self.job = None
                 self.cancel_btn.setVisible(False)
             self._side_jobs.discard(job)
+            job.release()
 
         job.ended.connect(ended)
         if exclusive:

@@ -23,6 +23,7 @@ class ModesView(QWidget):
         super().__init__(parent)
         self.main = main
         self.spec = None            # engine.modal.Spectra
+        self.freqs = None           # (nf,) Hz
         self.indicator = None       # (nf,) curve shown
         self.peaks: tuple = ()      # engine.modal.Peak
         self.edited = False
@@ -36,11 +37,12 @@ class ModesView(QWidget):
         self.plot.addLegend(offset=(-5, 5))
         self.plot.scene().sigMouseClicked.connect(self._clicked)
         self.table = QTableWidget(0, 5)
-        self.table.setHorizontalHeaderLabels(["f (Hz)", "σ (Hz)", "ζ (%)", "confidence", "model (Hz)"])
+        self.table.setHorizontalHeaderLabels(["f (Hz)", "σ (Hz)", "ζ (%)", "conf. (M: manual)", "model (Hz)"])
         self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.verticalHeader().setVisible(True)
-        self.table.setMaximumWidth(420)
+        self.table.setMinimumWidth(470)
+        self.table.setMaximumWidth(520)
         top = QHBoxLayout()
         top.addWidget(self.analyze_btn)
         top.addWidget(self.save_btn)
@@ -67,14 +69,27 @@ class ModesView(QWidget):
             return
         self.analyze_btn.setEnabled(self.main.run_path is not None)
         if self.spec is None:
-            self.banner.info("press 'Analyze run' to compute the spectra and pick the resonances"
-                             if self.main.run_path else "no run file yet: acquire first")
+            res = self.main.read_results("analysis")
+            sp = (res or {}).get("spectrum")
+            if isinstance(sp, dict) and "frequencies_hz" in sp:
+                from .analysis_link import stored_peaks
+                self.freqs = np.asarray(sp["frequencies_hz"], float)
+                self.indicator = np.asarray(sp["indicator"], float)
+                self.peaks = stored_peaks(res)
+                self.banner.info(f"stored analysis of this run: {len(self.peaks)} peaks "
+                                 "(click to edit: the spectra are recomputed from the shots)")
+            else:
+                self.freqs = self.indicator = None
+                self.peaks = ()
+                self.banner.info("press 'Analyze run' to compute the spectra and pick the resonances"
+                                 if self.main.run_path else "no run file yet: acquire first")
         self._draw()
 
     def set_modal(self, spec, peaks, indicator=None, edited: bool = False) -> None:
         """Show spectra ``spec`` (engine.modal.Spectra) and ``peaks``."""
         from engine import modal
         self.spec = spec
+        self.freqs = spec.frequencies_hz
         self.indicator = modal.indicator(spec) if indicator is None else np.asarray(indicator)
         self.peaks = tuple(peaks)
         self.edited = edited
@@ -94,7 +109,7 @@ class ModesView(QWidget):
 
     # -- editing ----------------------------------------------------------------------------
     def _clicked(self, ev) -> None:
-        if self.spec is None or ev.button() != Qt.LeftButton:
+        if self.freqs is None or ev.button() != Qt.LeftButton:
             return
         vb = self.plot.getPlotItem().vb
         if not vb.sceneBoundingRect().contains(ev.scenePos()):
@@ -102,12 +117,24 @@ class ModesView(QWidget):
         f = float(vb.mapSceneToView(ev.scenePos()).x())
         # a click within 8 px of a pick removes it
         px = abs(vb.mapSceneToView(ev.scenePos() + pg.Point(8, 0)).x() - f)
-        self.toggle_peak(f, tol_hz=max(px, 2 * self.spec.df))
+        self.toggle_peak(f, tol_hz=max(px, 2 * (self.freqs[1] - self.freqs[0])))
 
     def toggle_peak(self, f_hz: float, tol_hz: float | None = None) -> str:
         """Remove the pick within ``tol_hz`` of ``f_hz``, else add one fitted there.
         Returns 'removed', 'added' or an error message."""
         from engine import modal
+        if self.spec is None:
+            from .analysis_link import spectra_of_run
+            link = self.main.analysis_link()
+            if link is None or not self.main.run_path:
+                return "no spectra"
+            try:
+                self.spec = spectra_of_run(link, self.main.run_path)
+            except Exception as e:  # noqa: BLE001 - shown, not raised
+                self.main.message(f"cannot recompute the spectra: {e}", error=True)
+                return str(e)
+            if self.spec is None:
+                return "no spectra"
         tol = 2 * self.spec.df if tol_hz is None else tol_hz
         near = [p for p in self.peaks if abs(p.frequency_hz - f_hz) <= tol]
         if near:
@@ -139,10 +166,10 @@ class ModesView(QWidget):
     # -- drawing ----------------------------------------------------------------------------
     def _draw(self) -> None:
         self.plot.clear()
-        if self.spec is None:
+        if self.freqs is None:
             self.table.setRowCount(0)
             return
-        f = self.spec.frequencies_hz
+        f = self.freqs
         y = np.maximum(self.indicator, 1e-30)
         self.plot.plot(f[1:], y[1:], pen=pg.mkPen("#1f77b4", width=1), name="summed normalised spectrum")
         top = float(np.max(y[1:]))
@@ -168,7 +195,7 @@ class ModesView(QWidget):
         for i, p in enumerate(self.peaks):
             m = model[np.argmin(abs(model - p.frequency_hz))] if model.size else None
             cells = [f"{p.frequency_hz:.3f}", f"{p.sigma_hz:.2g}", f"{100 * p.damping_ratio:.3g}",
-                     f"{p.confidence:.2f}" + (" (manual)" if p.manual else ""),
+                     f"{p.confidence:.2f}" + (" M" if p.manual else ""),
                      "—" if m is None else f"{m:.3f}"]
             for j, c in enumerate(cells):
                 item = QTableWidgetItem(c)
@@ -180,5 +207,5 @@ class ModesView(QWidget):
         return {"edited": bool(self.edited)}
 
     def restore(self, st: dict) -> None:
-        self.spec = None
+        self.spec = self.freqs = self.indicator = None
         self.peaks = ()

@@ -1,9 +1,20 @@
-"""Waves tab (placeholder until its back-end lands)."""
+"""Waves tab: the scalogram of a wave shot with the picked arrival ridge, and the
+group velocity (with error bars) against the SAFE curve (nominal and identified).
+
+Arrivals and velocities are those of the analysis workflow (``labid.analysis``,
+stored under ``/results/analysis``); the scalogram is ``engine.waves.cwt`` with
+the analysis' wavelet, the curves ``engine.safe.group_velocity``.
+"""
 from __future__ import annotations
 
-from PySide6.QtWidgets import QVBoxLayout, QWidget
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
-from .common import Banner, backend
+from .common import Banner, plot
+
+COLORS = {"A0": "#1f77b4", "S0": "#d62728", "SH0": "#2ca02c"}
 
 
 class WavesView(QWidget):
@@ -11,17 +22,173 @@ class WavesView(QWidget):
         super().__init__(parent)
         self.main = main
         self.banner = Banner()
+        self.shot_combo = QComboBox()
+        self.info = QLabel("")
+        self.scalogram = plot("scalogram |W(f, t)|", ("time after trigger", "s"), ("frequency", "Hz"))
+        self.image = pg.ImageItem()
+        self.image.setColorMap(pg.colormap.get("viridis"))
+        self.scalogram.addItem(self.image)
+        self.ridge = pg.PlotDataItem(pen=pg.mkPen("w", width=2), symbol="o", symbolSize=4, symbolBrush="w")
+        self.scalogram.addItem(self.ridge)
+        self.velocity = plot("group velocity", ("frequency", "Hz"), ("group velocity", "m/s"))
+        self.velocity.addLegend(offset=(-5, -5))
+        top = QHBoxLayout()
+        top.addWidget(QLabel("record"))
+        top.addWidget(self.shot_combo)
+        top.addWidget(self.info, 1)
+        body = QHBoxLayout()
+        body.addWidget(self.scalogram, 1)
+        body.addWidget(self.velocity, 1)
         lay = QVBoxLayout(self)
         lay.addWidget(self.banner)
-        lay.addStretch(1)
+        lay.addLayout(top)
+        lay.addLayout(body, 1)
+        self.shot_combo.currentIndexChanged.connect(self._draw_scalogram)
+        self._records: list = []
+        self._res: dict | None = None
+        self._safe_job = None
+        self.safe_curves: dict = {}
         self.reload()
 
+    # -- data ---------------------------------------------------------------------------
     def reload(self) -> None:
-        if backend("labid.analysis") is None:
-            self.banner.warn("not available yet: the labid.analysis workflow has not landed in this build")
+        if self.main.analysis_link() is None:
+            self.banner.warn("not available yet: the analysis workflow (labid.analysis) has not landed")
+            return
+        res = self.main.read_results("analysis")
+        self._res = res
+        if not res or not res.get("waves"):
+            self.banner.info("no group velocities yet: record wave shots and press 'Analyze run' (Modes tab)"
+                             if self.main.run_path else "no run file yet: acquire first")
+        else:
+            self.banner.info("arrival ridge and group velocities of the analysis; SAFE curves of the "
+                             "nominal and the identified constants")
+        self._load_records()
+        self._draw_scalogram()
+        self._draw_velocity()
+        self._compute_safe()
+
+    def set_analysis(self, an) -> None:
+        self.reload()
+
+    def _load_records(self) -> None:
+        from ..runstore import RunStore
+        self._records = []
+        self.shot_combo.blockSignals(True)
+        self.shot_combo.clear()
+        if self.main.run_path:
+            try:
+                with RunStore(self.main.run_path, "r") as st:
+                    recs = st.shots("wave")[:10]
+            except Exception:  # noqa: BLE001 - no file / no shots: nothing to show
+                recs = []
+            for r in recs:
+                for c in r.channels:
+                    self._records.append((r, c.name))
+                    self.shot_combo.addItem(f"{r.meta.get('shot', '?')} · {c.name}")
+        if self._records:   # default: the farthest sensor of the first shot
+            n = len(self._records[0][0].channels)
+            self.shot_combo.setCurrentIndex(n - 1)
+        self.shot_combo.blockSignals(False)
+
+    def _specimen(self):
+        doc = self.main.features() or {}
+        try:
+            return self.main.specimen_for_features(doc)
+        except Exception:  # noqa: BLE001
+            return None
+
+    # -- drawing -------------------------------------------------------------------------------
+    def _draw_scalogram(self) -> None:
+        from engine import waves
+        i = self.shot_combo.currentIndex()
+        if i < 0 or i >= len(self._records):
+            self.image.clear()
+            self.ridge.setData([], [])
+            return
+        rec, name = self._records[i]
+        fs = rec.timing.rate_hz
+        arr = (self._res or {}).get("arrivals") or {}
+        wl = waves.PAPER_CFRP
+        wname = arr.get("wavelet")
+        if isinstance(wname, str) and wname.startswith("cmor"):
+            b, c = wname[4:].split("-")
+            wl = waves.Wavelet(float(b), float(c))
+        settings = (self._res or {}).get("settings") or {}
+        band = settings.get("wave_band_hz")
+        if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
+            fmin, fmax = float(band[0]), float(band[1])
+        else:
+            fmax = min(200e3, 0.4 * fs)
+            fmin = fmax / 20
+        freqs = np.linspace(fmin, fmax, 100)
+        x = rec.scaled(name)
+        W = np.abs(waves.cwt(x, fs, freqs, wl))
+        t = rec.time()
+        self.image.setImage(W.T, autoLevels=True)
+        self.image.setRect(pg.QtCore.QRectF(t[0], fmin, t[-1] - t[0], fmax - fmin))
+        self.info.setText(f"{wl.name} · {fs / 1e6:g} MHz · {len(t)} samples")
+        self.ridge.setData([], [])
+        if arr and "times_s" in arr and i == len(self._records[0][0].channels) - 1:
+            self.ridge.setData(np.asarray(arr["times_s"], float), np.asarray(arr["frequencies_hz"], float))
+        self.scalogram.setXRange(t[0], t[-1], padding=0)
+        self.scalogram.setYRange(fmin, fmax, padding=0)
+
+    def _draw_velocity(self) -> None:
+        p = self.velocity
+        p.clear()
+        curves = (self._res or {}).get("waves") or {}
+        for key, c in curves.items():
+            mode = key.split("_")[0]
+            ok = np.asarray(c.get("valid", np.ones(len(c["frequency_hz"]))), bool)
+            f = np.asarray(c["frequency_hz"], float)[ok]
+            v = np.asarray(c["group_velocity_m_s"], float)[ok]
+            s = np.asarray(c["sigma_m_s"], float)[ok]
+            col = COLORS.get(mode, "#9467bd")
+            p.addItem(pg.ErrorBarItem(x=f, y=v, top=s, bottom=s, beam=0.0, pen=pg.mkPen(col)))
+            p.plot(f, v, pen=None, symbol="o", symbolSize=5, symbolBrush=col, name=f"measured {key} deg")
+        for (mode, which), (f, v) in self.safe_curves.items():
+            col = COLORS.get(mode, "#9467bd")
+            style = Qt.DashLine if which == "nominal" else Qt.SolidLine
+            p.plot(f, v, pen=pg.mkPen(col, width=2, style=style), name=f"SAFE {mode}, {which}")
+
+    def _compute_safe(self) -> None:
+        curves = (self._res or {}).get("waves") or {}
+        spec = self._specimen()
+        if not curves or spec is None or self._safe_job is not None:
+            return
+        ident = self.main.read_results("identification") or {}
+        params = {n: float(p["value"]) for n, p in (ident.get("parameters") or {}).items()}
+        lam = spec.laminate
+        todo = []
+        for key, c in curves.items():
+            mode, direction = key.split("_")[0], float(key.split("_")[1])
+            f = np.asarray(c["frequency_hz"], float)
+            grid = np.linspace(f.min(), f.max(), 40)
+            todo.append((mode, direction, grid))
+
+        def work(progress, should_stop):
+            from engine import safe
+            out = {}
+            for mode, direction, grid in todo:
+                out[(mode, "nominal")] = (grid, np.asarray(safe.group_velocity(lam, grid, mode, direction)))
+                if params:
+                    lam2 = lam.with_params(params)
+                    out[(mode, "identified")] = (grid, np.asarray(safe.group_velocity(lam2, grid, mode, direction)))
+            return out
+
+        def done(out):
+            self._safe_job = None
+            self.safe_curves = out
+            self._draw_velocity()
+
+        def failed(msg):
+            self._safe_job = None
+
+        self._safe_job = self.main.start_job("SAFE curves", work, done, on_failed=failed, exclusive=False)
 
     def state(self) -> dict:
-        return {}
+        return {"record": int(self.shot_combo.currentIndex())}
 
     def restore(self, st: dict) -> None:
         pass

@@ -89,7 +89,24 @@ class Job(QObject):
         return self._stop.is_set()
 
     def is_running(self) -> bool:
-        return self._thread.isRunning()
+        return self._thread is not None and self._thread.isRunning()
 
     def wait(self, ms: int = 30000) -> bool:
-        return self._thread.wait(ms)
+        return self._thread.wait(ms) if self._thread is not None else True
+
+    def release(self) -> None:
+        """Drop the finished thread and the connections (no cycles left for the GC)."""
+        th, self._thread = self._thread, None
+        if th is not None:
+            th.job = None
+            th.deleteLater()
+        self.fn = None
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # "failed to disconnect": none connected
+            for sig in (self.progress, self.succeeded, self.failed, self.ended):
+                try:
+                    sig.disconnect()
+                except (RuntimeError, TypeError):
+                    pass
+        self.deleteLater()
