@@ -26,7 +26,14 @@ of the wave surface. The strain averaged over a sensor of length L centred
 at d is exactly [u(d + L/2) - u(d - L/2)] / L.
 
 Time synthesis: the spectrum of F is taken from dF/dt (finite for steps),
-``F(w) = G(w) / (i w)``; the DC bin is dropped (AC-coupled record). The
+``F(w) = G(w) / (i w)``; the DC bin is dropped. Dropping DC from a periodic
+record adds an offset, and for quantities with a static part (w, strain) a
+ramp ~ -(final value) t / T; the offset (velocity, acceleration) or the line
+a + b t (displacement, strain) is fitted on the record before the first
+possible arrival (t < 0.9 (d - L/2) / c_max, c_max = 1.2 x the fastest bulk
+wave speed) and removed, so the record is
+~0 until the fastest mode arrives and w, v, a remain consistent time
+derivatives (to ~1e-3 in the tests). The
 spectrum is tapered by a half cosine over the top 10 % of the band below
 ``fmax_hz`` (default: the Nyquist frequency or the force bandwidth,
 whichever is lower). The FFT period is extended until the slowest included
@@ -44,7 +51,7 @@ from scipy.fft import irfft, next_fast_len
 
 from .laminate import Laminate
 from .safe import (TWO_PI, SafeError, _branch_table, _cheb_branches, _dense_table, _invert_table,
-                   _reduce, safe_model)
+                   _reduce, ply_stiffness, safe_model)
 
 __all__ = ["ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst",
            "mode_transfer", "transient_response", "QUANTITIES"]
@@ -378,4 +385,19 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     Y = np.zeros(f.shape, complex)
     Y[band] = np.conj(H) * force.spectrum(fb) * taper
     y = irfft(Y, n=n_fft) * fs_hz
+    # causality: the DC-dropped modal sum carries a constant offset (the period mean of
+    # the quasi-static response); remove it using the part before the first arrival
+    # a mode-independent bound on any guided-wave speed (keeps the correction linear, so
+    # responses of separate modes still add up): 1.2 x the fastest bulk plane-wave speed
+    c_max = 1.2 * max(float(np.sqrt(np.max(np.diag(C)[:3]) / p.material.density))
+                      for p, C in zip(laminate.plies, ply_stiffness(laminate, direction_deg)))
+    if c_max > 0:
+        m = int(0.9 * (distance_m - sensor_length_m / 2) / c_max * fs_hz)
+        if m >= 8 and quantity in ("displacement", "strain"):
+            # quantities with a static part: dropping DC adds a + b t (b = -final value / T)
+            tt = np.arange(m) / fs_hz
+            b, a = np.polyfit(tt, y[:m], 1)
+            y = y - (a + b * np.arange(n_fft) / fs_hz)
+        elif m >= 2:
+            y = y - np.mean(y[:m])
     return y[:n_samples]
