@@ -297,10 +297,29 @@ def _coupling(X: np.ndarray, Qa: np.ndarray, Qb: np.ndarray) -> float:
     return float(np.max(np.abs(Qa.T @ X @ Qb)) / max(np.max(np.abs(X)), 1e-300))
 
 
-def _class_bases(z: np.ndarray, mats, tol=1e-12):
-    """Find uncoupled DOF classes. Returns list of (kind, Q, n_rigid)."""
-    n = len(z)
+def _structure(laminate: Laminate, Cs: list, z: np.ndarray, tol: float = 1e-12) -> tuple[bool, bool]:
+    """(mirror_symmetric, sh_decoupled) from the ply data.
+
+    SH/Lamb separate iff every ply has C16 = C36 = C45 = 0 in propagation axes
+    (the only terms of K0, K1, K2 coupling v with u, w; C26 never enters).
+    Symmetric and antisymmetric modes separate iff the mesh is mirror symmetric
+    and mirrored plies have the same stiffness and density.
+    """
+    scale = max(float(np.max(np.abs(C))) for C in Cs)
+    sh = all(max(abs(C[0, 5]), abs(C[2, 5]), abs(C[3, 4])) < tol * scale for C in Cs)
     h = z[-1] - z[0]
+    plies = laminate.plies
+    n = len(plies)
+    parity = bool(np.allclose(z, -z[::-1], atol=1e-9 * h)) and all(
+        np.allclose(Cs[i], Cs[n - 1 - i], rtol=0.0, atol=tol * scale)
+        and plies[i].material.density == plies[n - 1 - i].material.density
+        for i in range(n // 2))
+    return parity, sh
+
+
+def _class_bases(z: np.ndarray, parity: bool, sh: bool):
+    """Uncoupled DOF classes as (kind, Q, n_rigid), Q with orthonormal columns."""
+    n = len(z)
     comps = {"u": 0, "v": 1, "w": 2}
 
     r2 = 1.0 / np.sqrt(2.0)
@@ -326,24 +345,16 @@ def _class_bases(z: np.ndarray, mats, tol=1e-12):
             blocks.append(Q)
         return np.concatenate(blocks, axis=1)
 
-    def uncoupled(Qa, Qb):
-        return all(_coupling(X, Qa, Qb) < tol for X in mats)
-
-    mirror_ok = np.allclose(z, -z[::-1], atol=1e-9 * h)
     sym = {"u": 1, "v": 1, "w": -1}
     anti = {"u": -1, "v": -1, "w": 1}
-    parity = False
-    if mirror_ok:
-        parity = uncoupled(cols("uvw", sym), cols("uvw", anti))
-    sh = uncoupled(cols("v"), cols("uw"))
     if parity and sh:
         return [("S", cols("uw", sym), 1), ("A", cols("uw", anti), 1),
-                ("SHs", cols("v", sym), 1), ("SHa", cols("v", anti), 0)], parity, sh
+                ("SHs", cols("v", sym), 1), ("SHa", cols("v", anti), 0)]
     if parity:
-        return [("sym", cols("uvw", sym), 2), ("anti", cols("uvw", anti), 1)], parity, sh
+        return [("sym", cols("uvw", sym), 2), ("anti", cols("uvw", anti), 1)]
     if sh:
-        return [("lamb", cols("uw"), 2), ("sh", cols("v"), 1)], parity, sh
-    return [("all", np.eye(3 * n), 3)], parity, sh
+        return [("lamb", cols("uw"), 2), ("sh", cols("v"), 1)]
+    return [("all", np.eye(3 * n), 3)]
 
 
 _CLASS_CACHE: dict = {}
@@ -362,16 +373,14 @@ def safe_model(laminate: Laminate, direction_deg: float = 0.0, *, order: int | N
     if order < 1 or epp < 1:
         raise SafeError(f"order={order}, elements_per_ply={epp}: expected integers >= 1")
     z, K0, K1, K2, M = _assemble(laminate, float(direction_deg), order, epp)
-    # the class structure depends on the layup pattern only, not on the constants
-    key = (tuple((p.material.name, p.angle_deg, p.thickness) for p in laminate.plies),
-           float(direction_deg), order, epp)
+    parity, sh = _structure(laminate, ply_stiffness(laminate, float(direction_deg)), z)
+    key = (len(z), parity, sh)
     found = _CLASS_CACHE.get(key)
     if found is None:
-        found = _class_bases(z, (K0, K1, K2, M))
+        found = _class_bases(z, parity, sh)
         if len(_CLASS_CACHE) > 64:
             _CLASS_CACHE.pop(next(iter(_CLASS_CACHE)))
         _CLASS_CACHE[key] = found
-    found, parity, sh = found
     classes = []
     for kind, Q, n_rigid in found:
         Mc = Q.T @ M @ Q

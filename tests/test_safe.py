@@ -245,3 +245,27 @@ def test_many_modes_with_veering_match_full_newton():
             assert abs(mode.group_velocity_m_s[i] / cg - 1) < 1e-6, (mode.label, f[i])
             n += 1
     assert n > 40
+
+
+@pytest.mark.parametrize("angles,direction", [([0, 90, 90, 0], 0.0), ([0, 90, 90, 0], 30.0),
+                                              ([0, 45, -45, -45, 45, 0], 0.0), ([0, 90], 0.0),
+                                              ([0, 90], 20.0), ([30, -30], 0.0)])
+def test_class_split_is_exact(angles, direction):
+    """The classes found from ply data leave no coupling in K0, K1, K2, M; and where the
+    split is refused, the coupling really exists."""
+    lam = layup(angles)
+    m = safe_model(lam, direction, order=4, elements_per_ply=1)
+    Qs = safe._class_bases(m.z_nodes, m.info["mirror_symmetric"], m.info["sh_decoupled"])
+    mats = (m.K0, m.K1, m.K2, m.M)
+    for a in range(len(Qs)):
+        for b in range(a + 1, len(Qs)):
+            assert max(safe._coupling(X, Qs[a][1], Qs[b][1]) for X in mats) < 1e-13
+    # the finer splits that were not used would leave coupling
+    both = safe._class_bases(m.z_nodes, True, True) if np.allclose(m.z_nodes, -m.z_nodes[::-1]) else None
+    if not m.info["sh_decoupled"]:
+        lamb = [q for k, q, _ in safe._class_bases(m.z_nodes, False, True) if k == "lamb"][0]
+        shq = [q for k, q, _ in safe._class_bases(m.z_nodes, False, True) if k == "sh"][0]
+        assert max(safe._coupling(X, lamb, shq) for X in mats) > 1e-6
+    if not m.info["mirror_symmetric"] and both is not None:
+        sym, anti = [q for k, q, _ in safe._class_bases(m.z_nodes, True, False)]
+        assert max(safe._coupling(X, sym, anti) for X in mats) > 1e-6
