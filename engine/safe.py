@@ -694,12 +694,15 @@ def _roots_from_series(br: _Branches, omega: np.ndarray, j: int, n_dense: int = 
     """Largest-root k of lambda_j(k) = omega^2 for each omega, with lambda_j'(k). NaN if none."""
     kmax = br.kmax
     c = _chop(br.lam[:, j])
+    dc = npcheb.chebder(c) * (-2.0 / kmax) if len(c) > 1 else np.zeros(1)
     kd = np.linspace(0.0, kmax, n_dense)
-    L, D = _cheb_vals(c, kd, kmax, deriv=True)
+    xd = 1.0 - 2.0 * kd / kmax
+    L, D = npcheb.chebval(xd, c), npcheb.chebval(xd, dc)
     w2 = omega ** 2
-    cross = (L[None, :-1] <= w2[:, None]) & (L[None, 1:] > w2[:, None])
-    has = cross.any(axis=1) & (omega > 0)
-    n = cross.shape[1] - 1 - np.argmax(cross[:, ::-1], axis=1)
+    suffix_min = np.minimum.accumulate(L[::-1])[::-1]
+    n = np.searchsorted(suffix_min, w2, side="right") - 1          # last node with L <= w2
+    has = (n >= 0) & (n < n_dense - 1) & (omega > 0)
+    n = np.clip(n, 0, n_dense - 2)
     lo, hi = kd[n], kd[n + 1]
     k = _hermite_root(lo, hi, L[n], L[n + 1], D[n], D[n + 1], w2, n_iter=4)
     act = np.nonzero(has)[0]
@@ -707,8 +710,9 @@ def _roots_from_series(br: _Branches, omega: np.ndarray, j: int, n_dense: int = 
     for _ in range(n_iter):
         if len(act) == 0:
             break
-        f, d = _cheb_vals(c, k[act], kmax, deriv=True)
-        f -= w2[act]
+        x = np.clip(1.0 - 2.0 * k[act] / kmax, -1.0, 1.0)
+        f = npcheb.chebval(x, c) - w2[act]
+        d = npcheb.chebval(x, dc)
         kn = k[act] - f / np.where(d > 0, d, np.inf)
         # stay in the bracket of the dense grid (the start is already close)
         kn = np.clip(kn, lo[act], hi[act])
