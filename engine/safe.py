@@ -28,13 +28,13 @@ the group velocity follows from the eigenvector (Hellmann-Feynman)::
 
 Mode families and labels (the rule)
 -----------------------------------
-The DOFs are split into classes that the matrices do not couple, detected
-numerically (coupling < 1e-12 relative):
+The DOFs are split into classes that the matrices do not couple, decided
+from the ply data (relative tolerance 1e-12; a test checks the matrices):
 
-* mid-plane mirror symmetry (a symmetric layup: u, v even / w odd = symmetric,
-  the opposite = antisymmetric);
-* Lamb / SH separation (v uncoupled from u, w: propagation along a symmetry
-  axis of every ply, e.g. 0 or 90 deg in a cross-ply).
+* mid-plane mirror symmetry (mirrored plies with equal stiffness and density:
+  u, v even / w odd = symmetric, the opposite = antisymmetric);
+* Lamb / SH separation (C16 = C36 = C45 = 0 in every ply in propagation axes,
+  e.g. along 0 or 90 deg in a cross-ply).
 
 Branches of different classes may cross; within one class branches do not
 cross (they veer), so sorting the frequencies at fixed k within a class
