@@ -270,7 +270,7 @@ def _fit_cluster(spec: Spectra, data: np.ndarray, f0: np.ndarray, s0: np.ndarray
     hi = np.concatenate([fk[-1] * np.ones(K), np.full(K, np.log(2 * np.pi * np.ptp(fk) + 1e-3))])
     x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
     res = optimize.least_squares(resid, x0, bounds=(lo, hi), x_scale=np.concatenate(
-        [np.full(K, spec.df * 0.1), np.ones(K)]), xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=200)
+        [np.full(K, spec.df * 0.1), np.ones(K)]), xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=100)
     B, Bp = basis(res.x)
     n_out = Y.shape[1]
     cn = np.abs(B).max(axis=0)
@@ -318,6 +318,66 @@ def _confidence(snr_db: float, zeta: float) -> float:
     return c
 
 
+def _fit_all(spec: Spectra, f_init: Sequence[float], ind: np.ndarray, *, poly_deg: int = 2,
+             min_halfband_bins: int = 6, halfband_widths: float = 5.0, manual: bool = False,
+             halfwidths: Sequence[float] | None = None, snap: Sequence[bool] | None = None):
+    """Peaks and their poles (z, residues per output) fitted near ``f_init``.
+
+    Starting frequencies are snapped to the indicator's local maximum (+-2
+    bins, parabolic vertex) unless ``snap[i]`` is False (candidates found in
+    a residual, which the indicator itself does not show)."""
+    f = spec.frequencies_hz
+    df = spec.df
+    data = spec.fit_data()
+    fi = np.asarray(f_init, float)
+    sn = np.ones(fi.size, bool) if snap is None else np.asarray(snap, bool)
+    ks = np.clip(np.round(fi / df).astype(int), 1, len(f) - 2)
+    ks = np.array([max(k - 2, 1) + int(np.argmax(ind[max(k - 2, 1):min(k + 3, len(f) - 1)])) if s_ else k
+                   for k, s_ in zip(ks, sn)])
+    order = np.argsort(ks, kind="stable")
+    ks, fi, sn = ks[order], fi[order], sn[order]
+    logi = np.log(np.maximum(ind, np.finfo(float).tiny))
+    f0 = np.array([(k + _parabolic(logi, k)) * df if s_ else x for k, x, s_ in zip(ks, fi, sn)])
+    if halfwidths is None:
+        hw = np.array([_halfwidth_bins(ind, k) for k in ks])
+    else:
+        hw = np.maximum(np.asarray(halfwidths, float)[order], 0.5)
+    hw = np.minimum(hw, 50.0)
+    s0 = np.maximum(2 * np.pi * hw * df, 0.5 * np.pi * df)
+    w = np.maximum(min_halfband_bins, np.ceil(halfband_widths * hw)).astype(int)
+    clusters: list[list[int]] = []
+    for i in range(len(ks)):
+        if clusters and ks[i] - w[i] <= ks[clusters[-1][-1]] + w[clusters[-1][-1]]:
+            clusters[-1].append(i)
+        else:
+            clusters.append([i])
+    peaks: list[Peak] = []
+    poles: list[tuple[complex, np.ndarray]] = []
+    tau = spec.exp_tau_s
+    for cl in clusters:
+        k0 = max(1, min(ks[i] - w[i] for i in cl))
+        k1 = min(len(f), max(ks[i] + w[i] for i in cl) + 1)
+        deg = min(poly_deg + max(0, len(cl) - 1), 4)
+        need = 4 * (len(cl) + deg + 1)  # enough bins for a meaningful residual
+        if k1 - k0 < need:
+            grow = (need - (k1 - k0) + 1) // 2
+            k0, k1 = max(1, k0 - grow), min(len(f), k1 + grow)
+        fd, sg, cov, C, snrs, at_bound = _fit_cluster(spec, data, f0[cl], s0[cl], (k0, k1), deg)
+        for q in range(len(cl)):
+            sig = sg[q] - (1.0 / tau if tau is not None else 0.0)
+            wd = 2 * np.pi * fd[q]
+            wn = np.hypot(sig, wd)
+            zeta = float(sig / wn)
+            fn = float(wn / (2 * np.pi))
+            snr = float(snrs[q])
+            sf = float(np.sqrt(cov[q, q])) if np.isfinite(cov[q, q]) else float("nan")
+            conf = 0.0 if at_bound[q] else _confidence(snr, zeta)
+            peaks.append(Peak(fn, zeta, sf, snr, conf, _real_shape(C[q], spec), manual))
+            poles.append((complex(np.exp((-sg[q] + 2j * np.pi * fd[q]) / spec.fs_hz)), C[q]))
+    order = np.argsort([p.frequency_hz for p in peaks], kind="stable")
+    return [peaks[i] for i in order], [poles[i] for i in order]
+
+
 def fit_peaks(spec: Spectra, f_init: Sequence[float], *, poly_deg: int = 2,
               min_halfband_bins: int = 6, halfband_widths: float = 5.0,
               method: Literal["sum", "cmif"] = "sum", manual: bool = False) -> tuple[Peak, ...]:
@@ -328,83 +388,116 @@ def fit_peaks(spec: Spectra, f_init: Sequence[float], *, poly_deg: int = 2,
     """
     if len(f_init) == 0:
         return ()
-    f = spec.frequencies_hz
-    df = spec.df
-    ind = indicator(spec, method)
-    data = spec.fit_data()
-    ks = np.clip(np.round(np.asarray(f_init, float) / df).astype(int), 1, len(f) - 2)
-    # snap to the local maximum within +-2 bins
-    ks = np.array([max(k - 2, 1) + int(np.argmax(ind[max(k - 2, 1):min(k + 3, len(f) - 1)])) for k in ks])
-    order = np.argsort(ks)
-    ks = ks[order]
-    logi = np.log(np.maximum(ind, np.finfo(float).tiny))
-    f0 = np.array([(k + _parabolic(logi, k)) * df for k in ks])
-    hw = np.array([_halfwidth_bins(ind, k) for k in ks])
-    s0 = np.maximum(2 * np.pi * hw * df, 0.5 * np.pi * df)
-    w = np.maximum(min_halfband_bins, np.ceil(halfband_widths * hw)).astype(int)
-    # clusters: overlapping bands
-    clusters: list[list[int]] = []
-    for i in range(len(ks)):
-        if clusters and ks[i] - w[i] <= ks[clusters[-1][-1]] + w[clusters[-1][-1]]:
-            clusters[-1].append(i)
-        else:
-            clusters.append([i])
-    peaks: list[Peak] = []
-    tau = spec.exp_tau_s
-    for cl in clusters:
-        k0 = max(1, min(ks[i] - w[i] for i in cl))
-        k1 = min(len(f), max(ks[i] + w[i] for i in cl) + 1)
-        deg = poly_deg + max(0, len(cl) - 1)
-        fd, sg, cov, C, snrs, at_bound = _fit_cluster(spec, data, f0[cl], s0[cl], (k0, k1), deg)
-        K = len(cl)
-        for q in range(K):
-            sig = sg[q] - (1.0 / tau if tau is not None else 0.0)
-            wd = 2 * np.pi * fd[q]
-            wn = np.hypot(sig, wd)
-            zeta = float(sig / wn)
-            fn = float(wn / (2 * np.pi))
-            snr = float(snrs[q])
-            sf = float(np.sqrt(cov[q, q])) if np.isfinite(cov[q, q]) else float("nan")
-            conf = 0.0 if at_bound[q] else _confidence(snr, zeta)
-            peaks.append(Peak(fn, zeta, sf, snr, conf, _real_shape(C[q], spec), manual))
-    return tuple(sorted(peaks, key=lambda p: p.frequency_hz))
+    peaks, _ = _fit_all(spec, f_init, indicator(spec, method), poly_deg=poly_deg,
+                        min_halfband_bins=min_halfband_bins, halfband_widths=halfband_widths, manual=manual)
+    return tuple(peaks)
+
+
+def _pole_model(spec: Spectra, poles, k0: int, k1: int) -> np.ndarray:
+    """(n_outputs, k1 - k0) sum of the fitted pole terms on bins k0..k1-1."""
+    fk = spec.frequencies_hz[k0:k1]
+    zeta = np.exp(-2j * np.pi * fk / spec.fs_hz)
+    back = np.exp(2j * np.pi * fk * spec.onset / spec.fs_hz)
+    m_after = spec.n_samples - spec.onset
+    out = np.zeros((spec.fit_data().shape[0], k1 - k0), complex)
+    for z, C in poles:
+        out += C[:, None] * ((1.0 - z ** m_after * back) / (1.0 - z * zeta))[None, :]
+        if spec.frf is None:  # real records: the conjugate pole carries the conjugate residue
+            zc = np.conj(z)
+            out += np.conj(C)[:, None] * ((1.0 - zc ** m_after * back) / (1.0 - zc * zeta))[None, :]
+    return out
+
+
+def _power_indicator(spec: Spectra, Y: np.ndarray, norm: np.ndarray) -> np.ndarray:
+    """'sum' indicator of complex data Y (n_outputs, nk) with the channel normalisation ``norm``."""
+    nc = len(spec.channels)
+    P = np.abs(Y) ** 2
+    if spec.frf is None:
+        P = P.reshape(spec.n_hits, nc, -1).mean(axis=0) * 2.0  # as Spectra.magnitude
+    return (P / norm[:, None]).sum(axis=0)
+
+
+def _candidates(db: np.ndarray, prominence: float, rise_db: float, half: int = 128) -> np.ndarray:
+    """Peaks of a dB curve with a prominence and a rise over the running 20th percentile (+-half bins)."""
+    idx, _ = signal.find_peaks(db, prominence=prominence)
+    floor = ndimage.percentile_filter(db, 20, size=2 * half + 1, mode="nearest")
+    return idx[db[idx] - floor[idx] >= rise_db]
 
 
 def pick_peaks(spec: Spectra, *, fmin: float | None = None, fmax: float | None = None,
-               min_prominence_db: float = 3.0, min_rise_db: float = 6.0, min_confidence: float = 0.25,
-               method: Literal["sum", "cmif"] = "sum", max_peaks: int | None = None,
-               **fit_kw) -> tuple[Peak, ...]:
+               min_prominence_db: float = 3.0, min_rise_db: float | None = None,
+               min_confidence: float = 0.25, method: Literal["sum", "cmif"] = "sum",
+               max_peaks: int | None = None, residual_passes: int = 4, **fit_kw) -> tuple[Peak, ...]:
     """Find and fit the resonances in [fmin, fmax] (Hz) across all channels at once.
 
     Candidates are peaks of the indicator (``indicator``) with a prominence of
-    at least ``min_prominence_db`` and rising at least ``min_rise_db`` above
-    the running median of the indicator over +-64 bins; each is then fitted
-    (``fit_peaks``) and kept if its confidence is at least ``min_confidence``
-    (default 0.25, i.e. snr_db >= 15 dB: the largest noise peak of a 4000-bin
-    single-channel spectrum stays below 14 dB).
+    at least ``min_prominence_db`` that rise ``min_rise_db`` above the running
+    20th percentile of the indicator (default: the level a chi-square noise
+    spectrum with 2 x hits x channels degrees of freedom reaches once in the
+    band, at least 6 dB). All are fitted (``fit_peaks``); then the fitted
+    modes are subtracted from the complex data and the residual indicator is
+    searched again (``residual_passes`` times, 'sum' indicator only) for modes
+    hidden under the skirts of stronger neighbours. The search extends 10 %
+    beyond the band so that modes just outside it are modelled too. Kept:
+    confidence >= ``min_confidence`` (default 0.25, i.e. snr_db >= 15 dB).
     """
+    from scipy import stats
     f = spec.frequencies_hz
     ind = indicator(spec, method)
     lo = 1 if fmin is None else max(1, int(np.searchsorted(f, fmin)))
     hi = len(f) - 1 if fmax is None else min(len(f) - 1, int(np.searchsorted(f, fmax, side="right")))
     if hi - lo < 3:
         raise ModalError(f"frequency band [{fmin}, {fmax}] Hz holds fewer than 3 bins")
-    db = 10 * np.log10(np.maximum(ind[lo:hi], np.finfo(float).tiny))
-    idx, props = signal.find_peaks(db, prominence=min_prominence_db)
-    floor = 10 * np.log10(np.maximum(ndimage.median_filter(ind, size=129, mode="nearest")[lo:hi],
-                                     np.finfo(float).tiny))
-    rise = db[idx] - floor[idx] >= min_rise_db
-    idx, props = idx[rise], {k: v[rise] for k, v in props.items()}
+    # search 10 % beyond the band: modes just outside it bias those just inside
+    lo = max(1, int(lo - 0.1 * (hi - lo)) if fmin is not None else lo)
+    hi = min(len(f) - 1, int(hi + 0.1 * (hi - lo)))
+    if min_rise_db is None:
+        dof = 2 * max(spec.n_hits, 1) * len(spec.channels)
+        top = stats.chi2.ppf(1 - 1.0 / (hi - lo), dof)
+        min_rise_db = max(6.0, float(10 * np.log10(top / stats.chi2.ppf(0.2, dof))))
+    tiny = np.finfo(float).tiny
+    db = 10 * np.log10(np.maximum(ind[lo:hi], tiny))
+    idx = _candidates(db, min_prominence_db, min_rise_db)
     if max_peaks is not None and len(idx) > max_peaks:
-        keep = np.argsort(props["prominences"])[::-1][:max_peaks]
-        idx = np.sort(idx[keep])
-    peaks = fit_peaks(spec, (idx + lo) * spec.df, method=method, **fit_kw)
+        idx = np.sort(idx[np.argsort(db[idx])[::-1][:max_peaks]])
+    if len(idx) == 0:
+        return ()
+    cand = list((idx + lo) * spec.df)
+    hws = [_halfwidth_bins(ind, k) for k in idx + lo]
+    snaps = [True] * len(cand)
+    data = spec.fit_data()
+    P0 = spec.magnitude ** 2 if spec.kind == "frf" else spec.magnitude
+    norm = np.maximum(np.median(P0[:, 1:], axis=1), tiny)
+    peaks, poles = _fit_all(spec, cand, ind, halfwidths=hws, snap=snaps, **fit_kw)
+    for _ in range(residual_passes if method == "sum" else 0):
+        good = [(p, z) for p, z in zip(peaks, poles) if p.confidence >= min_confidence]
+        R = data[:, lo:hi] - _pole_model(spec, [z for _, z in good], lo, hi)
+        ir = _power_indicator(spec, R, norm)
+        dbr = 10 * np.log10(np.maximum(ir, tiny))
+        new = []
+        # residual peaks are noisy: assume at least the typical half width of the modes found
+        zeta_typ = float(np.median([p.damping_ratio for p, _ in good])) if good else 0.0
+        js = _candidates(dbr, min_prominence_db, min_rise_db)
+        for j in js[np.argsort(dbr[js])[::-1]][:10]:  # the 10 strongest per pass
+            fj = (j + lo) * spec.df
+            hwj = max(_halfwidth_bins(ir, j), zeta_typ * fj / spec.df)
+            near = any(abs(p.frequency_hz - fj) < max(2 * spec.df, 0.5 * p.damping_ratio * p.frequency_hz)
+                       for p, _ in good) or any(abs(c - fj) < 2 * spec.df for c in cand)
+            if not near:
+                new.append(((j + _parabolic(dbr, j)) * spec.df + lo * spec.df, hwj))
+        if not new:
+            break
+        cand += [c for c, _ in new]
+        hws += [h for _, h in new]
+        snaps += [False] * len(new)
+        peaks, poles = _fit_all(spec, cand, ind, halfwidths=hws, snap=snaps, **fit_kw)
     out = [p for p in peaks if p.confidence >= min_confidence
            and (fmin is None or p.frequency_hz >= fmin) and (fmax is None or p.frequency_hz <= fmax)]
-    # two candidates that converged on the same pole: keep the more confident one
+    # candidates that converged on the same pole: keep the more confident one
     dedup: list[Peak] = []
     for p in out:
-        if dedup and abs(p.frequency_hz - dedup[-1].frequency_hz) < max(spec.df / 4, 3 * p.sigma_hz if np.isfinite(p.sigma_hz) else 0):
+        if dedup and abs(p.frequency_hz - dedup[-1].frequency_hz) < max(
+                spec.df / 4, 3 * p.sigma_hz if np.isfinite(p.sigma_hz) else 0.0):
             if p.confidence > dedup[-1].confidence:
                 dedup[-1] = p
             continue
