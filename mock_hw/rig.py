@@ -9,9 +9,13 @@ sine after contact); accelerometer j reads sum_m phi_m(xj, yj) q_m''(t). The
 force channel reads F(t). Rigid-body/suspension modes are left out (they lie
 below the IEPE high-pass).
 
-Wave shots (``role='wave'``, 1-5 MHz): ``engine.safe.transient_response`` (surface
-strain along the path, infinite plate) from a pencil-lead break or a hammer,
-at each sensor's distance, times the sensor's volts per strain.
+Wave shots (``role='wave'``, 1-5 MHz): surface strain along the path of an
+infinite plate from a pencil-lead break or a hammer, at each sensor's distance,
+times the sensor's volts per strain: the per-mode SAFE transfer functions of
+``engine.safe.mode_transfer`` times the force spectrum, synthesised directly on
+the oversampled grid (so that a per-mode viscoelastic attenuation and a time
+offset apply in the frequency domain), then made causal before the fastest
+possible arrival (``_causal``).
 
 What a real record has, in this order: the continuous signal on a grid
 ``OVERSAMPLE`` times finer than the sample clock, the device's anti-alias
@@ -405,7 +409,6 @@ def _vibration(rig, specimen, lam, effects, channels, t) -> dict[str, np.ndarray
 def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.ndarray]:
     src, sim = rig.wave_source, rig.sim
     fmax = min(sim.wave_fmax_hz, 0.45 * fs)
-    n_base = 2 * samples + 16
     force = ("pencil", src.rise_s) if src.kind == "pencil" else ("hammer", src.contact_s)
     out: dict[str, np.ndarray] = {}
     tf = (np.arange(nf) - lead) / (OVERSAMPLE * fs)
@@ -419,24 +422,54 @@ def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.n
             continue
         d = ws.distance_m + effects.path_length
         ap = effects.sensor_aperture if effects.sensor_aperture > 0 else ws.length_m
-        strain = _causal(_transient(lam, d, force, fs, n_base, ws.direction_deg, ap, fmax),
-                         fs, max(d - ap / 2.0, 1e-6) / _fastest(lam, ws.direction_deg, fmax))
-        v = ws.volts_per_strain * c.sensitivity * strain
-        out[c.name] = _upsample(v, fs, lead, nf, effects.timing_offset,
-                                _attenuation(lam, d, effects.viscoelastic, ws.direction_deg))
+        strain = _wave_fine(lam, d, force, fs, nf - lead, ws.direction_deg, ap, fmax,
+                            effects.viscoelastic, effects.timing_offset)
+        out[c.name] = np.concatenate([np.zeros(lead), ws.volts_per_strain * c.sensitivity * strain])
     return out
 
 
 @functools.lru_cache(maxsize=64)
-def _transient(lam, d, force_key, fs, n, direction_deg, aperture, fmax):
-    """Unit-force SAFE surface strain at distance d (m), t = 0 at force onset; cached."""
+def _wave_fine(lam, d: float, force_key: tuple, fs: float, n_fine: int, direction_deg: float,
+               aperture: float, fmax: float, eta: float, delay_s: float) -> np.ndarray:
+    """Surface strain per newton at distance d on the fine grid (OVERSAMPLE * fs), t = 0
+    at the force onset.
+
+    Sum over the SAFE modes of ``engine.safe.mode_transfer`` times the force
+    spectrum (half-cosine taper over the top 10 % below fmax, DC dropped), each
+    mode attenuated by exp(-eta k_m d / 2) with k_m = 2 pi f / c_phase,m, delayed
+    by delay_s, then made causal (``_causal``). FFT period: 8 records.
+    """
+    from scipy.fft import irfft, next_fast_len
+
     from engine import safe
     kind, dur = force_key
     force = (safe.pencil_lead_break(rise_s=dur, amplitude_n=1.0) if kind == "pencil"
              else safe.hammer_force(dur, amplitude_n=1.0))
-    return np.asarray(safe.transient_response(lam, d, force, fs, n, direction_deg=direction_deg,
-                                              quantity="strain", sensor_length_m=aperture,
-                                              source="point", fmax_hz=fmax), float)
+    n_rec = -(-n_fine // OVERSAMPLE)
+    n_fft = next_fast_len(8 * n_rec, real=True)
+    f = np.fft.rfftfreq(n_fft, 1.0 / fs)
+    band = (f > 0) & (f <= fmax)
+    fb = f[band]
+    taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
+    H = safe.mode_transfer(lam, d, fb, direction_deg=direction_deg, quantity="strain",
+                           sensor_length_m=aperture, source="point")
+    if eta > 0:
+        disp = safe.dispersion(lam, np.linspace(fmax / 256, fmax, 256), direction_deg)
+        for label in H:
+            cp = disp.mode(label).phase_velocity_m_s
+            ok = np.isfinite(cp)
+            if ok.sum() < 2:
+                continue
+            cpf = np.interp(fb, disp.frequency_hz[ok], cp[ok])
+            H[label] = H[label] * np.exp(-eta * (2 * np.pi * fb / cpf) * d / 2.0)
+    total = sum(H.values(), np.zeros(fb.size, complex))
+    Y = np.zeros(f.shape, complex)
+    Y[band] = np.conj(total) * force.spectrum(fb) * taper
+    if delay_s:
+        Y = Y * np.exp(-2j * np.pi * f * delay_s)
+    y = irfft(Y, n=OVERSAMPLE * n_fft) * fs * OVERSAMPLE
+    t_first = max(d - aperture / 2.0, 1e-6) / _fastest(lam, direction_deg, fmax)
+    return _causal(y, OVERSAMPLE * fs, t_first + max(delay_s, 0.0))[:n_fine]
 
 
 @functools.lru_cache(maxsize=16)
@@ -466,40 +499,3 @@ def _causal(y: np.ndarray, fs: float, t_first: float) -> np.ndarray:
     else:
         y -= y[0]
     return y
-
-
-def _attenuation(lam, d: float, eta: float, direction_deg: float):
-    """f (Hz) -> exp(-eta k d / 2), k = 2 pi f / c_phase(A0); None when eta = 0."""
-    if eta <= 0:
-        return None
-
-    def att(f: np.ndarray) -> np.ndarray:
-        f = np.asarray(f, float)
-        fp = np.linspace(max(f[1], 1.0), f[-1], 64)
-        cp = _a0_phase_velocity(lam, fp, direction_deg)
-        k = 2 * np.pi * f / np.interp(f, fp, cp)
-        return np.exp(-eta * k * d / 2.0)
-    return att
-
-
-def _a0_phase_velocity(lam, f: np.ndarray, direction_deg: float) -> np.ndarray:
-    from engine import safe
-    return np.asarray(safe.dispersion(lam, f, direction_deg).mode("A0").phase_velocity_m_s, float)
-
-
-def _upsample(v: np.ndarray, fs: float, lead: int, nf: int, delay_s: float, att) -> np.ndarray:
-    """Band-limited interpolation of v (t=0 at sample 0) to the fine grid, with an
-    optional pure delay and a frequency-domain attenuation; lead fine zeros first."""
-    n = v.size
-    npad = 2 * n
-    V = np.fft.rfft(v, npad)
-    f = np.fft.rfftfreq(npad, 1.0 / fs)
-    if delay_s:
-        V = V * np.exp(-2j * np.pi * f * delay_s)
-    if att is not None:
-        V = V * att(f)
-    fine = np.fft.irfft(V, OVERSAMPLE * npad) * OVERSAMPLE
-    out = np.zeros(nf)
-    m = min(nf - lead, fine.size)
-    out[lead:lead + m] = fine[:m]
-    return out
