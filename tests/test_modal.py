@@ -5,6 +5,8 @@ shapes; the records are synthesised here, independently of the code.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -185,15 +187,13 @@ def _nodal_point(model, modes, mode, y):
     return 0.5 * (a + b)
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("with_force", [False, True], ids=["auto-spectra", "H1"])
-def test_acceptance_cfrp_plate_hammer_test(with_force):
+@functools.lru_cache(maxsize=1)
+def _cfrp_hammer_test():
     """Simulated hammer test of the CFRP plate (modes from engine.plate_fe), 4
     accelerometers, one on a nodal line of mode 3, damping 0.4-0.8 %, 5 hits.
     The responses are built here in the frequency domain from the continuous
     acceleration FRF of each mode (independent of the sampled-pole model the
-    estimator uses). Every mode below 1070 Hz with SNR >= 20 dB must be found,
-    frequency within 0.05 %, damping within 10 %."""
+    estimator uses). Returns (fn, zeta, snr_db per mode, hits, forces, pre)."""
     from engine.plate_fe import PlateModel
     from labid.specimen import load_specimen
     sp = load_specimen("cfrp")
@@ -224,9 +224,17 @@ def test_acceptance_cfrp_plate_hammer_test(with_force):
     hits += noise * rng.normal(size=hits.shape)
     # SNR of each mode: its own spectral peak over the noise level, best channel
     snr = 10 * np.log10((np.abs(np.fft.rfft(per_mode, axis=-1)) ** 2).max(axis=-1) / (noise ** 2 * n)).max(axis=1)
+    return fn, zeta, snr, hits, np.array(forces), pre
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("with_force", [False, True], ids=["auto-spectra", "H1"])
+def test_acceptance_cfrp_plate_hammer_test(with_force):
+    """Every mode below 1070 Hz with SNR >= 20 dB is found, frequency within
+    0.05 % of the model, damping within 10 % of the injected value."""
+    fn, zeta, snr, hits, forces, pre = _cfrp_hammer_test()
     fmax = 1070.0
-    spec = modal.spectra(hits, FS, np.array(forces) if with_force else None, pretrigger=pre,
-                         force_window_s=0.005)
+    spec = modal.spectra(hits, FS, forces if with_force else None, pretrigger=pre, force_window_s=0.005)
     peaks = modal.pick_peaks(spec, fmin=5.0, fmax=fmax)
     must = (fn < fmax) & (snr >= 20)
     assert must.sum() >= 25 and must[2]
@@ -238,3 +246,28 @@ def test_acceptance_cfrp_plate_hammer_test(with_force):
     p3 = min(peaks, key=lambda q: abs(q.frequency_hz - fn[2]))
     assert abs(p3.shape[3]) < 0.01
     assert len(peaks) <= must.sum() + 2  # nothing much beyond the real modes
+
+
+@pytest.mark.slow
+def test_outside_check_against_sdypy_ema_lscf():
+    """Independent estimator (sdypy-EMA's LSCF) on the same H1 FRF: the two
+    agree on the frequencies to a median 0.02 % and on the damping to a median
+    5 %; against the model, ours is at least as close as LSCF (recorded in
+    bench/RESULTS.md)."""
+    EMA = pytest.importorskip("sdypy.EMA")
+    fn, zeta, snr, hits, forces, pre = _cfrp_hammer_test()
+    spec = modal.spectra(hits, FS, forces, pretrigger=pre, force_window_s=0.005)
+    peaks = modal.pick_peaks(spec, fmin=5.0, fmax=1070.0)
+    m = EMA.Model(frf=spec.frf, freq=spec.frequencies_hz, lower=5, upper=1070, pol_order_high=70,
+                  frf_form="accelerance")
+    m.get_poles(show_progress=False)
+    m.select_closest_poles([p.frequency_hz for p in peaks], f_window=5)
+    f_l, z_l = np.asarray(m.nat_freq, float), np.asarray(m.nat_xi, float)
+    f_o = np.array([p.frequency_hz for p in peaks])
+    z_o = np.array([p.damping_ratio for p in peaks])
+    assert np.median(np.abs(f_l / f_o - 1)) < 2e-4
+    assert np.median(np.abs(z_l / z_o - 1)) < 0.05
+    idx = [int(np.argmin(np.abs(fn - f))) for f in f_o]
+    err_o = np.abs(f_o / fn[idx] - 1)
+    err_l = np.abs(f_l / fn[idx] - 1)
+    assert np.median(err_o) <= np.median(err_l)
