@@ -19,41 +19,6 @@ from .errors import UserError
 __all__ = ["problem_from_features", "run_diagnosis", "plot_gap", "load_features"]
 
 
-def load_features(path: str | Path) -> tuple[dict, Path]:
-    """Parse a features JSON file; (doc, directory for relative specimen paths)."""
-    import json
-    p = Path(path)
-    try:
-        doc = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise UserError("file not found; expected a features JSON file (CONTRACT section 2)", file=str(p)) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise UserError(f"cannot read: {e}", file=str(p)) from None
-    except json.JSONDecodeError as e:
-        raise UserError(f"not valid JSON (line {e.lineno}): {e.msg}", file=str(p)) from None
-    if not isinstance(doc, dict):
-        raise UserError("expected a JSON object at the top level", file=str(p))
-    return doc, p.parent
-
-
-def _arr(doc: Mapping, key: str, where: str, src: str, n: int | None = None, positive=False) -> np.ndarray:
-    if key not in doc:
-        raise UserError("missing; expected a list of numbers", file=src, key=f"{where}{key}")
-    try:
-        a = np.asarray(doc[key], float)
-    except (TypeError, ValueError):
-        raise UserError(f"value {doc[key]!r:.60}: expected a list of numbers", file=src, key=f"{where}{key}") from None
-    if a.ndim == 0 and n is not None:
-        a = np.full(n, float(a))
-    if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
-        raise UserError("expected a non-empty list of finite numbers", file=src, key=f"{where}{key}")
-    if n is not None and a.size != n:
-        raise UserError(f"{a.size} values: expected {n}", file=src, key=f"{where}{key}")
-    if positive and np.any(a <= 0):
-        raise UserError("expected positive values", file=src, key=f"{where}{key}")
-    return a
-
-
 def _num(doc: Mapping, key: str, where: str, src: str, default=None) -> float | None:
     v = doc.get(key, default)
     if v is None:
@@ -67,94 +32,85 @@ def _num(doc: Mapping, key: str, where: str, src: str, default=None) -> float | 
     return v
 
 
-def _points(items: Any, key: str, src: str) -> tuple[tuple[float, float], ...]:
-    if items is None:
-        return ()
-    if not isinstance(items, list):
-        raise UserError("expected a list of {x, y} tables", file=src, key=key)
-    out = []
-    for i, it in enumerate(items):
-        if not isinstance(it, Mapping) or "x" not in it or "y" not in it:
-            raise UserError(f"item {i}: expected a table with x and y in m", file=src, key=key)
-        out.append((_num(it, "x", f"{key}[{i}].", src), _num(it, "y", f"{key}[{i}].", src)))
-    return tuple(out)
+
+def load_features(path: str | Path) -> tuple[dict, Path]:
+    """Read and validate a features JSON file (``labid.features``); (doc, its directory)."""
+    from .features import read_features
+    return read_features(path), Path(path).parent
+
+
+def _sigmas(doc: Mapping, key: str, values: np.ndarray, default_rel: float, notes: list[str],
+            where: str) -> np.ndarray:
+    s = doc.get(key)
+    if s is None:
+        notes.append(f"{where}{key} absent: assuming {default_rel:.1%} of the values")
+        return default_rel * values
+    s = np.broadcast_to(np.asarray(s, float), values.shape).copy()
+    bad = ~np.isfinite(s)
+    s[bad] = default_rel * values[bad]
+    return s
 
 
 def problem_from_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>"):
-    """GapProblem from parsed features (specimen path relative to ``base_dir`` or inline)."""
+    """GapProblem from a features document (see ``problem_and_notes``)."""
+    return problem_and_notes(doc, base_dir, src)[0]
+
+
+def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>"):
+    """(GapProblem, notes) from a features document (validated by ``labid.features``; specimen
+    path relative to ``base_dir``, a built-in name or inline). Velocities that are
+    null/NaN are dropped; absent sigmas default as in ``labid identify``."""
     from engine.gap_forward import GapProblem, ModalData, RigLayout, WaveData
 
-    from .specimen import load_specimen, specimen_from_dict
+    from .features import specimen_of, validate_features
+    from .identification import DEFAULT_MODAL_SIGMA_REL, DEFAULT_WAVE_SIGMA_REL
 
-    spec = doc.get("specimen")
-    if isinstance(spec, Mapping):
-        specimen = specimen_from_dict(spec, f"{src}:specimen")
-    elif isinstance(spec, str):
-        p = Path(spec)
-        if not p.is_absolute() and (Path(base_dir) / p).exists():
-            p = Path(base_dir) / p
-        specimen = load_specimen(p if p.exists() else spec)
-    else:
-        raise UserError("missing; expected a specimen file path or an inline specimen table",
-                        file=src, key="specimen")
+    doc = validate_features(doc, src)
+    specimen = specimen_of(doc, base_dir, src)
+    notes: list[str] = []
     modal = None
     if doc.get("modal") is not None:
         m = doc["modal"]
-        if not isinstance(m, Mapping):
-            raise UserError("expected a table", file=src, key="modal")
-        f = _arr(m, "frequencies_hz", "modal.", src, positive=True)
-        s = _arr(m, "sigma_hz", "modal.", src, len(f), positive=True)
+        f = np.asarray(m["frequencies_hz"], float)
+        sig = _sigmas(m, "sigma_hz", f, DEFAULT_MODAL_SIGMA_REL, notes, "modal.")
         pts = vals = None
-        ms = m.get("mode_shapes")
-        if ms is not None:
-            try:
-                pts = np.asarray(ms["points"], float)
-                vals = np.asarray(ms["values"], float)
-            except (KeyError, TypeError, ValueError):
-                raise UserError("expected {points: [[x, y], ...], values: [[...], ...]}",
-                                file=src, key="modal.mode_shapes") from None
-            if pts.ndim != 2 or pts.shape[1] != 2 or vals.shape != (len(f), len(pts)):
-                raise UserError(f"values of shape {vals.shape}: expected ({len(f)}, {len(pts)}) "
-                                "(one row per measured mode, one column per point)",
-                                file=src, key="modal.mode_shapes")
-        modal = ModalData(f, s, pts, vals)
+        if m.get("mode_shapes") is not None:
+            pts = np.asarray(m["mode_shapes"]["points"], float)
+            vals = np.asarray(m["mode_shapes"]["values"], float)
+        modal = ModalData(f, sig, pts, vals)
     waves = []
-    wl = doc.get("waves") or []
-    if not isinstance(wl, list):
-        raise UserError("expected a list of wave sets", file=src, key="waves")
-    for i, w in enumerate(wl):
-        where = f"waves[{i}]."
-        if not isinstance(w, Mapping):
-            raise UserError("expected a table", file=src, key=f"waves[{i}]")
-        f = _arr(w, "frequency_hz", where, src, positive=True)
-        cg = _arr(w, "group_velocity_m_s", where, src, len(f), positive=True)
-        sg = _arr(w, "sigma_m_s", where, src, len(f), positive=True)
-        mode = str(w.get("mode", "A0"))
-        if mode not in ("A0", "S0", "SH0"):
-            raise UserError(f"value {mode!r}: expected A0, S0 or SH0", file=src, key=f"{where}mode")
-        waves.append(WaveData(mode, _num(w, "direction_deg", where, src, 0.0), f, cg, sg))
+    for i, w in enumerate(doc.get("waves") or []):
+        f = np.asarray(w["frequency_hz"], float)
+        cg = np.asarray(w["group_velocity_m_s"], float)
+        sg = _sigmas(w, "sigma_m_s", cg, DEFAULT_WAVE_SIGMA_REL, notes, f"waves[{i}].")
+        ok = np.isfinite(cg) & np.isfinite(sg)
+        if ok.sum() == 0:
+            notes.append(f"waves[{i}]: no measured velocity, set ignored")
+            continue
+        waves.append(WaveData(w["mode"], float(w["direction_deg"]), f[ok], cg[ok], sg[ok]))
     rig = doc.get("rig") or {}
-    if not isinstance(rig, Mapping):
-        raise UserError("expected a table", file=src, key="rig")
     wl_ = rig.get("wavelet") or {}
     layout = RigLayout(
-        _points(rig.get("accelerometers"), "rig.accelerometers", src),
-        _points(rig.get("supports"), "rig.supports", src),
-        _num(rig, "wave_path_m", "rig.", src),
-        _num(rig, "sensor_length_m", "rig.", src, 0.0),
-        _num(rig, "temperature_c", "rig.", src),
+        tuple((a["x"], a["y"]) for a in rig.get("accelerometers") or []),
+        tuple((a["x"], a["y"]) for a in rig.get("supports") or []),
+        rig.get("wave_path_m"),
+        float(rig.get("sensor_length_m") or 0.0),
+        rig.get("temperature_c"),
         _num(wl_, "bandwidth", "rig.wavelet.", src, 2.0),
         _num(wl_, "center", "rig.wavelet.", src, 5.0))
     if modal is None and not waves:
-        raise UserError("no modal frequencies and no waves: nothing to diagnose", file=src, key="modal")
-    if waves and not (layout.wave_path_m and layout.wave_path_m > 0):
-        raise UserError("missing or non-positive; expected the wave path in m", file=src, key="rig.wave_path_m")
+        raise UserError("no modal frequencies and no wave velocities: nothing to diagnose", file=src,
+                        key="modal")
+    if waves and not layout.wave_path_m:
+        raise UserError("missing; expected the wave path in m (needed with waves)", file=src,
+                        key="rig.wave_path_m")
     for k, (x, y) in [("rig.accelerometers", p) for p in layout.accelerometers] + \
                      [("rig.supports", p) for p in layout.supports]:
         if not (-1e-9 <= x <= specimen.length + 1e-9 and -1e-9 <= y <= specimen.width + 1e-9):
             raise UserError(f"point ({x}, {y}) lies outside the {specimen.length} x {specimen.width} m plate",
                             file=src, key=k)
-    return GapProblem(specimen.laminate, specimen.length, specimen.width, layout, modal, tuple(waves))
+    return (GapProblem(specimen.laminate, specimen.length, specimen.width, layout, modal, tuple(waves)),
+            notes)
 
 
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
@@ -163,9 +119,11 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
     from engine.gap import diagnose
     from engine.laminate import PhysicsError
 
-    problem = problem_from_features(doc, base_dir, src)
+    problem, notes = problem_and_notes(doc, base_dir, src)
     try:
-        return diagnose(problem, options)
+        res = diagnose(problem, options)
+        res["notes"] = notes
+        return res
     except PhysicsError as e:
         raise UserError(f"unphysical nominal constants: {e}", file=src, key="specimen") from None
 

@@ -43,7 +43,7 @@ RANGES = {
     "thickness": (0.01, 0.04, True),             # relative, 1-4 % nominal vs real
     "timing_offset": (0.5e-6, 3e-6, True),       # s, trigger / coupling delay
     "path_length": (0.003, 0.010, True),         # m, source/sensor placement
-    "sensor_aperture": (0.010, 0.016, False),    # m, true length (nominal 5 mm)
+    "sensor_aperture": (0.015, 0.028, False),    # m, true length (nominal 5 mm): MFC M2814 active 28 mm
     "viscoelastic": (0.005, 0.03, False),        # loss factor of epoxy composites
     "ply_angle": (2.0, 5.0, True),               # deg, whole layup
     "soft_patch": (0.3, 0.6, False),             # fraction of stiffness lost locally

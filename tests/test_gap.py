@@ -97,7 +97,7 @@ def test_local_stiffness_loss_is_unattributed():
 @pytest.mark.slow
 def test_timing_offset_is_found_from_group_velocities():
     case = draw_case(15, "timing_offset", wave_sets=(("A0", 0.0, 6), ("S0", 0.0, 5)), mesh=MESH)
-    res = _diagnose(case)
+    res = _diagnose(case, top_k=2)
     assert res["verdict"] == "timing_offset"
     e = res["effects"][0]
     assert e["unit"] == "s" and e["magnitude"] == pytest.approx(case.magnitude, rel=0.15)
@@ -106,7 +106,7 @@ def test_timing_offset_is_found_from_group_velocities():
 # -- command line ------------------------------------------------------------------
 @pytest.mark.slow
 def test_cli_writes_contract_keys_and_plot(tmp_path):
-    case = draw_case(16, "support_stiffness", wave_sets=(("A0", 0.0, 5),))
+    case = draw_case(16, "support_stiffness", wave_sets=())
     f = tmp_path / "features.json"
     f.write_text(json.dumps(case.features))
     out, png = tmp_path / "diag.json", tmp_path / "gap.png"
