@@ -296,7 +296,8 @@ def velocity_gate(distance_m: float, v_min: float, v_max: float, source_time_s: 
 def expected_gate(distance_m: float, cg_expected: np.ndarray, *, margin: float = 0.25,
                   source_time_s: float | np.ndarray = 0.0, reflection_m: float | None = None,
                   faster_cg: np.ndarray | None = None, slower_cg: np.ndarray | None = None,
-                  time_std_s: np.ndarray | float = 0.0, clearance: float = 3.0) -> tuple[np.ndarray, np.ndarray]:
+                  time_std_s: np.ndarray | float = 0.0, clearance: float = 3.0,
+                  mode_clearance: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Per-frequency gate (s) around an expected group velocity curve (m/s).
 
     Arrivals between ``distance / (cg (1 + margin))`` and ``distance / (cg (1 - margin))``
@@ -307,8 +308,10 @@ def expected_gate(distance_m: float, cg_expected: np.ndarray, *, margin: float =
     picking A0), and before the earliest arrival of a slower mode
     (``slower_cg``, e.g. A0 when picking S0), so that none can pull the
     scalogram maximum (|psi| has an amplitude std of sqrt(2) time-std, hence
-    the default clearance of 3). Where they leave no room the gate is empty
-    and the frequency is rejected.
+    the default echo clearance of 3). The other mode gets ``mode_clearance``
+    (default 1) time-std only: under a normal force S0 is much weaker than A0,
+    and a long wavelet (C = 5) would otherwise leave no gate at low frequency.
+    Where they leave no room the gate is empty and the frequency is rejected.
     """
     cg = np.asarray(cg_expected, float)
     ts = np.asarray(time_std_s, float)
@@ -318,10 +321,10 @@ def expected_gate(distance_m: float, cg_expected: np.ndarray, *, margin: float =
         hi = np.minimum(hi, source_time_s + reflection_m / (cg * (1 + margin)) - clearance * ts)
     if faster_cg is not None:
         fast = np.asarray(faster_cg, float)
-        lo = np.maximum(lo, source_time_s + distance_m / (fast * (1 - margin)) + clearance * ts)
+        lo = np.maximum(lo, source_time_s + distance_m / (fast * (1 - margin)) + mode_clearance * ts)
     if slower_cg is not None:
         slow = np.asarray(slower_cg, float)
-        hi = np.minimum(hi, source_time_s + distance_m / (slow * (1 + margin)) - clearance * ts)
+        hi = np.minimum(hi, source_time_s + distance_m / (slow * (1 + margin)) - mode_clearance * ts)
     return lo, hi
 
 

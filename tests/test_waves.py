@@ -150,9 +150,10 @@ def test_a0_and_s0_separated_by_gates():
     s0 = np.full(FREQS.size, c_s0)
     ts = wl.time_std_s(FREQS)
     # gates from 10 %-wrong expected curves
-    g_a0 = waves.expected_gate(DIST, cg_a0 * 0.9, margin=0.3, source_time_s=T_C, faster_cg=s0, time_std_s=ts)
+    g_a0 = waves.expected_gate(DIST, cg_a0 * 0.9, margin=0.3, source_time_s=T_C, faster_cg=s0, time_std_s=ts,
+                               mode_clearance=3.0)
     g_s0 = waves.expected_gate(DIST, s0 * 1.1, margin=0.2, source_time_s=T_C, slower_cg=cg_a0 * 0.9,
-                               time_std_s=ts)
+                               time_std_s=ts, mode_clearance=3.0)
     a0, _ = velocities(u, force, wl, gate=g_a0)
     s0v, _ = velocities(u, force, wl, gate=g_s0, correct=False)
     ok = a0.valid
@@ -207,3 +208,66 @@ def test_bad_input():
         waves.Wavelet(0, 1)
     with pytest.raises(waves.WaveError):
         waves.velocity_gate(0.3, 2000, 1000)
+
+
+# --------------------------------------------------------------------------- SAFE-synthesised records
+def _safe_case(name, distance, force, fs, n, wl, fmax, noise_rel=1e-3, seed=0):
+    from engine import safe
+    from labid.specimen import load_specimen
+    lam = load_specimen(name).laminate
+    u = safe.transient_response(lam, distance, force, fs, n, quantity="strain")
+    u = u + noise_rel * np.abs(u).max() * np.random.default_rng(seed).normal(size=n)
+    freqs = np.linspace(fmax / 20, fmax, 60)
+    cg = np.asarray(safe.group_velocity(lam, freqs, "A0"), float)
+    cs0 = np.asarray(safe.group_velocity(lam, freqs, "S0"), float)
+    # gates from curves 5 % off (the nominal model is never exact)
+    gate = waves.expected_gate(distance, cg * 1.05, margin=0.3, faster_cg=cs0, time_std_s=wl.time_std_s(freqs))
+    nr = waves.white_noise_level(noise_rel * np.abs(u).max(), fs, freqs, wl)
+    a = waves.arrival_times(waves.cwt(u, fs, freqs, wl), fs, freqs, wl, gate_s=gate, noise_rms=nr)
+    return lam, freqs, cg, a
+
+
+@pytest.mark.slow
+def test_safe_aluminium_hammer_a0_within_1_percent():
+    """Paper section 3: aluminium 3.175 mm, hammer, strain 0.375 m away, cmor2-1 to
+    50 kHz; source times from the force record's scalogram."""
+    from engine import safe
+    fs, n = 1e6, 4096
+    force = safe.hammer_force(20e-6)
+    wl = waves.PAPER_ALUMINIUM
+    lam, freqs, cg, a = _safe_case("aluminium", DIST, force, fs, n, wl, 50e3)
+    fw = force(np.arange(n) / fs)
+    af = waves.arrival_times(waves.cwt(fw, fs, freqs, wl), fs, freqs, wl)
+    g = waves.group_velocity(waves.correct_dispersion_bias(a), DIST, af)
+    ok = g.valid
+    assert ok[(freqs >= 5e3) & (freqs <= 45e3)].all()
+    assert np.abs(g.velocity_m_s[ok] / cg[ok] - 1).max() < 0.01
+    # the paper's nominal assignment with this wavelet is off by more than 1 % (docs/wavelet-bias.md)
+    gn = waves.group_velocity(a, DIST, af, assign="nominal")
+    assert np.nanmax(np.abs(gn.velocity_m_s / cg - 1)) > 0.01
+
+
+@pytest.mark.slow
+def test_safe_cfrp_pencil_lead_a0_within_1_percent():
+    """Paper Fig. 8-9: CFRP [0/+-45]2s, pencil-lead break, cmor2-5 to 200 kHz;
+    source to sensor (source time: middle of the 1 us rise) and between two sensors."""
+    from engine import safe
+    fs, n = 2e6, 4096
+    plb = safe.pencil_lead_break(1e-6)
+    wl = waves.PAPER_CFRP
+    lam, freqs, cg, a2 = _safe_case("cfrp", 0.20, plb, fs, n, wl, 200e3)
+    band = freqs >= 20e3
+    g = waves.group_velocity(waves.correct_dispersion_bias(a2), 0.20, source_time_s=0.5e-6)
+    ok = g.valid & band
+    assert ok.sum() >= 0.8 * band.sum()
+    assert np.abs(g.velocity_m_s[ok] / cg[ok] - 1).max() < 0.01
+    # two sensors, 0.05 and 0.20 m (the default rig): at 5 cm A0 and S0 overlap within a
+    # cmor2-5 wavelet, so this geometry needs the shorter cmor2-1
+    wl = waves.PAPER_ALUMINIUM
+    _, _, _, a2 = _safe_case("cfrp", 0.20, plb, fs, n, wl, 200e3)
+    _, _, _, a1 = _safe_case("cfrp", 0.05, plb, fs, n, wl, 200e3, seed=1)
+    g2 = waves.group_velocity(waves.correct_dispersion_bias(a2), 0.20, waves.correct_dispersion_bias(a1),
+                              near_distance_m=0.05)
+    ok = g2.valid & band
+    assert ok.sum() >= 0.8 * band.sum()
+    assert np.abs(g2.velocity_m_s[ok] / cg[ok] - 1).max() < 0.01
