@@ -436,8 +436,9 @@ def _wave_fine(lam, d: float, force_key: tuple, fs: float, n_fine: int, directio
 
     Sum over the SAFE modes of ``engine.safe.mode_transfer`` times the force
     spectrum (half-cosine taper over the top 10 % below fmax, DC dropped), each
-    mode attenuated by exp(-eta k_m d / 2) with k_m = 2 pi f / c_phase,m, delayed
-    by delay_s, then made causal (``_causal``). FFT period: 8 records.
+    mode attenuated by exp(-eta k_m d / 2) with k_m = 2 pi f / c_phase,m, made
+    causal (``_causal``), then delayed by delay_s (to the nearest fine sample,
+    1 / (OVERSAMPLE fs)). FFT period: 8 records.
     """
     from scipy.fft import irfft, next_fast_len
 
@@ -465,11 +466,15 @@ def _wave_fine(lam, d: float, force_key: tuple, fs: float, n_fine: int, directio
     total = sum(H.values(), np.zeros(fb.size, complex))
     Y = np.zeros(f.shape, complex)
     Y[band] = np.conj(total) * force.spectrum(fb) * taper
-    if delay_s:
-        Y = Y * np.exp(-2j * np.pi * f * delay_s)
     y = irfft(Y, n=OVERSAMPLE * n_fft) * fs * OVERSAMPLE
     t_first = max(d - aperture / 2.0, 1e-6) / _fastest(lam, direction_deg, fmax)
-    return _causal(y, OVERSAMPLE * fs, t_first + max(delay_s, 0.0))[:n_fine]
+    y = _causal(y, OVERSAMPLE * fs, t_first)
+    shift = int(round(delay_s * OVERSAMPLE * fs))     # delay to the nearest fine sample
+    if shift > 0:
+        y = np.concatenate([np.zeros(shift), y[:-shift]])
+    elif shift < 0:
+        y = np.concatenate([y[-shift:], np.full(-shift, y[-1])])
+    return y[:n_fine]
 
 
 @functools.lru_cache(maxsize=16)
