@@ -208,12 +208,16 @@ def test_ctrl_c_stops_cleanly_with_summary(tmp_path):
         assert s.n_shots("hammer") == summary["recorded"]["hammer"]
 
 
-def test_documented_example_rig_parses():
+def test_documented_example_rig_records_hammer_triggered_waves(tmp_path):
     text = (ROOT / "docs" / "rig-file.md").read_text()
     example = text.split("## Minimal example")[1].split("```toml")[1].split("```")[0]
     rig = rig_from_text(example, "docs example")
     assert rig.device("wave").trigger.channel == "hammer_hf"
     assert rig.wave_sensor("strain1").distance_m == 0.375
+    with RunStore(tmp_path / "ex.h5") as s:
+        summary = AcquisitionSession(rig, "aluminium", s).run(0, 1)
+        rec = s.shots("wave")[0]
+    assert summary["complete"] and rec.scaled("hammer_hf").max() > 10.0   # N, of the 20 N hit
 
 
 def test_rig_features_block_follows_the_contract():

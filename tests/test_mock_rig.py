@@ -266,3 +266,25 @@ def test_viscoelastic_loss_attenuates_waves_by_exp_minus_eta_k_x_over_2(cfrp, wa
     ratio = amp(lossy.data["mfc2"]) / amp(wave_shot.data["mfc2"])
     ratio *= wave_shot.meta["sim_force_peak_n"] / lossy.meta["sim_force_peak_n"]
     assert ratio == pytest.approx(expected, rel=0.05)
+
+
+def test_sensor_aperture_averages_strain_like_sinc_k_l_over_2(cfrp, wave_shot):
+    """A sensor of length L averages the A0 strain at wavenumber k over L: amplitude
+    x sin(k L / 2) / (k L / 2) (exact for a plane wave)."""
+    from engine.safe import dispersion
+    rig, fs, f0, L = load_rig(), wave_shot.timing.rate_hz, 50e3, 0.008
+    wide = shot(rig, cfrp, "wave", seed=5, effects=Effects(sensor_aperture=L))
+
+    def amp(x):
+        x = x - np.linspace(x[0], x[-1], x.size)
+        n = 4 * x.size
+        X = np.fft.fft(x, n)
+        f = np.fft.fftfreq(n, 1 / fs)
+        G = np.where(f > 0, 2 * np.exp(-0.5 * ((f - f0) / (0.05 * f0)) ** 2), 0)
+        return np.abs(np.fft.ifft(X * G)).max()
+
+    k = 2 * np.pi * f0 / float(dispersion(cfrp.laminate, [f0]).mode("A0").phase_velocity_m_s[0])
+    expected = np.sin(k * L / 2) / (k * L / 2)
+    ratio = amp(wide.data["mfc2"]) / amp(wave_shot.data["mfc2"])
+    ratio *= wave_shot.meta["sim_force_peak_n"] / wide.meta["sim_force_peak_n"]
+    assert expected < 0.9 and ratio == pytest.approx(expected, rel=0.03)
