@@ -85,7 +85,7 @@ class AcquisitionSession:
         if self.backend == "mock":
             from mock_hw.rig import SimulatedDevice
             dev = SimulatedDevice(self.rig, self.specimen, kind, self.effects, self.seed)
-            last = [r.meta.get("shot_index") for r in self.store.shots(kind)[-1:]]
+            last = [m.get("shot_index") for m in self.store.metas(kind)[-1:]]
             if last and isinstance(last[0], int):
                 dev.shot_index = last[0] + 1          # resume: continue the random sequence
         else:

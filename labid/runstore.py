@@ -435,8 +435,18 @@ class RunStore:
         kinds = [kind] if kind else list(self._f["shots"])
         return sum(self._f["shots"][k]["committed"].shape[0] for k in kinds if k in self._f["shots"])
 
-    def shots(self, kind: str | None = None) -> list[Record]:
-        """Every committed shot (of ``kind``, or all kinds in table order) as Records.
+    def metas(self, kind: str) -> list[dict]:
+        """The ``meta`` dict of every committed shot of ``kind`` (no sample data read)."""
+        self._refresh()
+        if kind not in self._f["shots"]:
+            return []
+        g = self._f["shots"][kind]
+        n = g["committed"].shape[0]
+        return [json.loads(m.decode() or "{}") for m in g["meta"][:n]]
+
+    def shots(self, kind: str | None = None, limit: int | None = None) -> list[Record]:
+        """Every committed shot (of ``kind``, or all kinds in table order) as Records;
+        ``limit``: at most that many (the first) of each kind.
 
         ``meta`` carries ``kind``, ``shot`` (name), ``software_version`` besides
         what the device recorded.
@@ -453,6 +463,8 @@ class RunStore:
             trig = json.loads(g.attrs["trigger"])
             trigger = Trigger(**trig) if trig else None
             n = g["committed"].shape[0]
+            if limit is not None:
+                n = min(n, max(0, int(limit)))
             if n == 0:
                 continue
             data = {c.name: g[c.name][:n] for c in chans}

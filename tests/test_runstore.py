@@ -76,6 +76,8 @@ def test_resume_appends_and_keeps_numbering(tmp_path):
             s.write_config("a = 3\n", "b = 2\n")
     with RunStore(p, "r") as s:
         assert [r.meta["i"] for r in s.shots()] == [0, 1]
+        assert [r.meta["i"] for r in s.shots("hammer", limit=1)] == [0]
+        assert [m["i"] for m in s.metas("hammer")] == [0, 1] and s.metas("wave") == []
         with pytest.raises(UserError, match="read-only"):
             s.append_shot(record(2), "hammer")
 
