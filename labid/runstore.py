@@ -524,10 +524,16 @@ def _write_tree(g: h5py.Group, data: dict) -> None:
         elif isinstance(v, (list, tuple)) and v and all(isinstance(x, str) for x in v):
             g.create_dataset(k, data=list(v), dtype=h5py.string_dtype())
         else:
-            arr = np.asarray(v)
-            if arr.dtype == object:
-                raise ValueError(f"cannot store {k!r}: {type(v).__name__} with mixed types")
-            g.create_dataset(k, data=arr)
+            try:
+                arr = np.asarray(v)
+            except (ValueError, TypeError):
+                arr = np.empty(0, dtype=object)
+            if arr.dtype == object or arr.dtype.kind in "MmU":
+                # mixed lists, dates...: kept as JSON text
+                ds = g.create_dataset(k, data=json.dumps(v, default=str), dtype=h5py.string_dtype())
+                ds.attrs["encoding"] = "json"
+            else:
+                g.create_dataset(k, data=arr)
 
 
 def _read_tree(g: h5py.Group) -> Any:
@@ -542,7 +548,9 @@ def _read_tree(g: h5py.Group) -> Any:
             out[k] = None
             continue
         x = v[()]
-        if v.dtype.kind == "O" or h5py.check_string_dtype(v.dtype):
+        if v.attrs.get("encoding") == "json":
+            out[k] = json.loads(x.decode() if isinstance(x, bytes) else x)
+        elif v.dtype.kind == "O" or h5py.check_string_dtype(v.dtype):
             out[k] = x.decode() if isinstance(x, bytes) else [s.decode() for s in x]
         elif isinstance(x, np.ndarray):
             out[k] = x

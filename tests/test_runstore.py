@@ -94,7 +94,7 @@ def test_results_groups_round_trip(tmp_path):
     p = tmp_path / "run.h5"
     feats = {"modal": {"frequencies_hz": np.array([37.3, 85.8]), "n": 2, "ok": True},
              "waves": [{"mode": "A0", "cg": [812.0, 1103.0]}, {"mode": "S0", "cg": [5000.0]}],
-             "labels": ["a", "b"], "specimen": "cfrp", "missing": None}
+             "labels": ["a", "b"], "specimen": "cfrp", "missing": None, "mixed": [1, "x", 2.5]}
     with RunStore(p) as s:
         s.append_shot(record(0), "hammer")
         s.write_group("features", feats)
@@ -107,6 +107,7 @@ def test_results_groups_round_trip(tmp_path):
     assert g["modal"]["n"] == 2 and bool(g["modal"]["ok"]) is True
     assert g["waves"][1]["mode"] == "S0" and list(g["waves"][0]["cg"]) == [812.0, 1103.0]
     assert g["labels"] == ["a", "b"] and g["specimen"] == "cfrp" and g["missing"] is None
+    assert g["mixed"] == [1, "x", 2.5]
 
 
 def test_uncommitted_rows_are_dropped_on_reopen(tmp_path):
