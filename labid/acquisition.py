@@ -60,16 +60,20 @@ class AcquisitionSession:
     rig: a Rig or a rig path ('default' or None: the built-in simulated rig);
     specimen: a Specimen or a path/builtin name ('cfrp'); store: an open RunStore;
     backend: 'mock' or 'nidaqmx'; effects: mock_hw.rig.Effects for the mock;
-    seed: the mock's random seed (shot k of a run is reproducible from it).
+    seed: the mock's random seed (shot k of a run is reproducible from it);
+    device_factory: DeviceSpec -> Device, replaces the backend's devices (tests,
+    other hardware).
     """
 
     def __init__(self, rig: Rig | str | None, specimen: Specimen | str, store: RunStore,
-                 backend: str = "mock", effects=None, seed: int = 0):
+                 backend: str = "mock", effects=None, seed: int = 0,
+                 device_factory: Callable[[Any], Any] | None = None):
         self.rig = rig if isinstance(rig, Rig) else load_rig(rig)
         self.specimen = specimen if isinstance(specimen, Specimen) else load_specimen(specimen)
         if backend not in BACKENDS:
             raise UserError(f"value {backend!r}: expected one of {list(BACKENDS)}", key="--backend")
         self.store, self.backend, self.effects, self.seed = store, backend, effects, int(seed)
+        self.device_factory = device_factory
         self.rig.check_specimen(self.specimen.length, self.specimen.width)
         self._devices: dict[str, Any] = {}
 
@@ -82,7 +86,9 @@ class AcquisitionSession:
         if spec is None:
             raise UserError(f"no device with role {kind!r}; expected a [devices.NAME] table with "
                             f"role = {kind!r} to record {kind} shots", file=self.rig.source, key="devices")
-        if self.backend == "mock":
+        if self.device_factory is not None:
+            dev = self.device_factory(spec)
+        elif self.backend == "mock":
             from mock_hw.rig import SimulatedDevice
             dev = SimulatedDevice(self.rig, self.specimen, kind, self.effects, self.seed)
             last = [m.get("shot_index") for m in self.store.metas(kind)[-1:]]
@@ -97,7 +103,7 @@ class AcquisitionSession:
             daq = spec.daq_device or next((c.physical.split("/")[0] for c in spec.channels
                                            if "/" in c.physical), "Dev1")
         try:
-            if self.backend == "nidaqmx":
+            if self.backend == "nidaqmx" and self.device_factory is None:
                 dev = NiDaqDevice(spec.name, daq)
             dev.configure(spec.channels, spec.timing, spec.trigger)
         except AcquisitionError as e:

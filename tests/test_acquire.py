@@ -225,3 +225,50 @@ def test_rig_features_block_follows_the_contract():
     assert [a["mass_kg"] for a in f["accelerometers"]] == [0.002] * 3
     assert f["supports"][0] == {"x": 0.03, "y": 0.33}
     assert f["wave_path_m"] == pytest.approx(0.15) and f["sensor_length_m"] == 0.0
+
+
+class ScriptedDevice:
+    """A protocol-only device replaying a script: 'miss', 'over' or 'ok' per read."""
+
+    def __init__(self, spec, script):
+        self.name, self.spec, self.script, self.calls = spec.name, spec, list(script), []
+
+    def configure(self, channels, timing, trigger):
+        self.calls.append("configure")
+        self.cfg = (channels, timing, trigger)
+
+    def arm(self):
+        self.calls.append("arm")
+
+    def read(self, timeout_s=10.0):
+        from drivers.protocol import NoTrigger, Record
+        self.calls.append("read")
+        what = self.script.pop(0)
+        if what == "miss":
+            raise NoTrigger(f"{self.name}: no trigger")
+        channels, timing, trigger = self.cfg
+        data = {c.name: np.full(timing.samples, 0.001 * (len(self.calls))) for c in channels}
+        over = {c.name: what == "over" and c.kind == "accelerometer" for c in channels}
+        return Record(data, channels, timing, trigger, over, backend="scripted")
+
+    def close(self):
+        self.calls.append("close")
+
+
+def test_workflow_uses_only_the_protocol_and_redoes_bad_shots(tmp_path):
+    """Any Device works; a missed and an overloaded read are redone, good ones stored
+    in order, and the device is configured once and closed at the end."""
+    devs = {}
+
+    def factory(spec):
+        devs[spec.role] = ScriptedDevice(spec, ["miss", "ok", "over", "ok"] if spec.role == "hammer"
+                                         else ["ok"])
+        return devs[spec.role]
+
+    with RunStore(tmp_path / "s.h5") as s:
+        summary = AcquisitionSession(None, "cfrp", s, device_factory=factory).run(2, 1)
+        recs = s.shots("hammer")
+    assert summary["recorded"] == {"hammer": 2, "wave": 1} and summary["redone"] == 2
+    assert devs["hammer"].calls == ["configure"] + ["arm", "read"] * 4 + ["close"]
+    assert [r.data["force"][0] for r in recs] == [0.001 * 5, 0.001 * 9]   # reads 2 and 4
+    assert all(r.backend == "scripted" for r in recs)
