@@ -227,6 +227,10 @@ class _Problem:
             raise IdentificationError("no data to fit")
         self.blocks, self.coords, self.fd_step = tuple(blocks), coords, fd_step
         self.n_eval = 0
+        self._last: tuple[np.ndarray, list[np.ndarray]] | None = None
+        # quasi-Newton (Broyden) state of finite-difference blocks: theta, y, dy/dtheta
+        self._fd_state: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.quasi_used = False
 
     def predict(self, theta: np.ndarray) -> list[np.ndarray]:
         par = self.coords.as_dict(theta)
@@ -237,18 +241,32 @@ class _Problem:
             if y.shape != b.observed.shape or not np.all(np.isfinite(y)):
                 raise ValueError(f"block {b.name!r}: model returned {y.shape} / non-finite values")
             out.append(y)
+        self._last = (np.array(theta, float), out)
         return out
+
+    def _cached(self, theta: np.ndarray) -> list[np.ndarray] | None:
+        if self._last is not None and np.array_equal(self._last[0], theta):
+            return self._last[1]
+        return None
 
     def residual(self, theta: np.ndarray) -> np.ndarray:
         return np.concatenate([(y - b.observed) / b.sigma for b, y in zip(self.blocks, self.predict(theta))])
 
-    def block_jacobians(self, theta: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Predictions and whitened Jacobians d((y-obs)/sigma)/dtheta per block."""
+    def block_jacobians(self, theta: np.ndarray, quasi: bool = False
+                        ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """Predictions and whitened Jacobians d((y-obs)/sigma)/dtheta per block.
+
+        Blocks without an analytic Jacobian use forward differences (backward
+        at the edge of the physical domain); with ``quasi`` their previous
+        Jacobian is instead updated by Broyden's rank-one formula from the
+        change of predictions (no extra model evaluations).
+        """
         par = self.coords.as_dict(theta)
         dpdt = self.coords.dp_dtheta(theta)
         names = self.coords.names
         preds, jacs = [], []
         fd_blocks = []
+        cached = self._cached(theta)
         for i, b in enumerate(self.blocks):
             if b.jacobian is not None:
                 y, dy = b.jacobian(par, names)
@@ -257,27 +275,47 @@ class _Problem:
             else:
                 preds.append(None); jacs.append(None); fd_blocks.append(i)
         self.n_eval += 1
-        if fd_blocks:
+        self.quasi_used = False
+        if not fd_blocks:
+            return preds, jacs
+        if cached is not None:
+            base = {i: cached[i] for i in fd_blocks}
+        else:
             base = {i: np.asarray(self.blocks[i].predict(par), float) for i in fd_blocks}
-            h = self.fd_step if self.coords.space == "log" else self.fd_step * np.abs(theta).clip(1e-3)
-            h = np.broadcast_to(h, theta.shape)
-            cols: dict[int, list[np.ndarray]] = {i: [] for i in fd_blocks}
-            for j in range(len(theta)):
-                for sgn in (1.0, -1.0):   # backward difference at the edge of the physical domain
-                    t = theta.copy(); t[j] += sgn * h[j]
-                    pj = self.coords.as_dict(t)
-                    self.n_eval += 1
-                    try:
-                        ys = [np.asarray(self.blocks[i].predict(pj), float) for i in fd_blocks]
-                        break
-                    except ValueError:
-                        if sgn < 0:
-                            raise
-                for i, y in zip(fd_blocks, ys):
-                    cols[i].append((y - base[i]) / (sgn * h[j]))
+        if quasi and all(i in self._fd_state for i in fd_blocks):
             for i in fd_blocks:
+                t0, y0, J0 = self._fd_state[i]
+                dt = theta - t0
+                nrm = float(dt @ dt)
+                J = J0 if nrm == 0 else J0 + np.outer(base[i] - y0 - J0 @ dt, dt) / nrm
+                self._fd_state[i] = (theta.copy(), base[i], J)
                 preds[i] = base[i]
-                jacs[i] = np.column_stack(cols[i]) / self.blocks[i].sigma[:, None]
+                jacs[i] = J / self.blocks[i].sigma[:, None]
+            self.quasi_used = True
+            return preds, jacs
+        h = self.fd_step if self.coords.space == "log" else self.fd_step * np.abs(theta).clip(1e-3)
+        h = np.broadcast_to(h, theta.shape)
+        cols: dict[int, list[np.ndarray]] = {i: [] for i in fd_blocks}
+        for j in range(len(theta)):
+            for sgn in (1.0, -1.0):   # backward difference at the edge of the physical domain
+                t = theta.copy(); t[j] += sgn * h[j]
+                pj = self.coords.as_dict(t)
+                self.n_eval += 1
+                try:
+                    ys = [np.asarray(self.blocks[i].predict(pj), float) for i in fd_blocks]
+                    if not all(np.all(np.isfinite(y)) for y in ys):
+                        raise ValueError("non-finite model values")
+                    break
+                except ValueError:
+                    if sgn < 0:
+                        raise
+            for i, y in zip(fd_blocks, ys):
+                cols[i].append((y - base[i]) / (sgn * h[j]))
+        for i in fd_blocks:
+            J = np.column_stack(cols[i])
+            self._fd_state[i] = (theta.copy(), base[i], J)
+            preds[i] = base[i]
+            jacs[i] = J / self.blocks[i].sigma[:, None]
         return preds, jacs
 
 
@@ -454,7 +492,7 @@ def _finish(prob: _Problem, theta: np.ndarray, prior_mean: np.ndarray, prior_w: 
 def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *,
              prior: Prior | float | None = 1.0, space: str = "log", max_iter: int = 50,
              xtol: float = 1e-9, max_step: float = 0.7, rel_threshold: float = 0.1,
-             dtol: float = 1e-12, mu0: float = 1e-3, continuation: bool = True,
+             dtol: float = 1e-12, mu0: float = 1e-3, continuation: bool = True, broyden: bool = True,
              callback: Callable[[dict], None] | None = None) -> Estimate:
     """Combined weighted least squares (Levenberg-Marquardt) with Laplace covariance.
 
@@ -468,7 +506,10 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
     remaining error is below sqrt(dtol) standard deviations). With ``continuation`` and a prior weaker than 0.3 (or none),
     the fit is first converged loosely with the prior firmed to 0.3, and the
     prior is then relaxed: nearly unidentifiable directions cannot run away
-    while the well-identified ones are still far from their values.
+    while the well-identified ones are still far from their values. With
+    ``broyden``, blocks without analytic Jacobian (finite differences) get
+    rank-one Broyden updates between fresh difference Jacobians (refreshed
+    when steps fail and always before declaring convergence).
     """
     t0 = time.perf_counter()
     p_start = _check_start(names, start)
@@ -491,7 +532,7 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
         theta, converged, n_it, message = _lm(prob, theta, tp, ws, xtol if last else max(xtol, 1e-3),
                                               dtol if last else max(dtol, 1e-2),
                                               max_iter - total_it, max_step, mu0, history, total_it,
-                                              callback)
+                                              callback, broyden)
         total_it += n_it
         if total_it >= max_iter:
             break
@@ -499,17 +540,28 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
                    f"levenberg-marquardt/{space}", message, warnings, t0, rel_threshold)
 
 
+def _gn_step(A: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, float]:
+    """Undamped Gauss-Newton step and its Newton decrement (inf if not computable)."""
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(g))):
+        return np.full_like(g, np.inf), np.inf
+    try:
+        gn = -np.linalg.lstsq(A, g, rcond=1e-14)[0]
+    except np.linalg.LinAlgError:
+        return np.full_like(g, np.inf), np.inf
+    return gn, float(-g @ gn)
+
+
 def _lm(prob: _Problem, theta: np.ndarray, tp: np.ndarray, w: np.ndarray, xtol: float, dtol: float,
         max_iter: int, max_step: float, mu0: float, history: list[dict], it0: int,
-        callback=None) -> tuple[np.ndarray, bool, int, str]:
+        callback=None, broyden: bool = True) -> tuple[np.ndarray, bool, int, str]:
     """Levenberg-Marquardt iterations on whitened residuals plus prior rows."""
     coords = prob.coords
 
     def full_residual(th: np.ndarray) -> np.ndarray:
         return np.concatenate([prob.residual(th), w * (th - tp)])
 
-    def full_jac(th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        preds, jacs = prob.block_jacobians(th)
+    def full_jac(th: np.ndarray, quasi: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        preds, jacs = prob.block_jacobians(th, quasi=quasi and broyden)
         r = np.concatenate([(y - b.observed) / b.sigma for b, y in zip(prob.blocks, preds)]
                            + [w * (th - tp)])
         return r, np.vstack(jacs + [np.diag(w)])
@@ -523,21 +575,27 @@ def _lm(prob: _Problem, theta: np.ndarray, tp: np.ndarray, w: np.ndarray, xtol: 
         A, g = J.T @ J, J.T @ r
         dmax = max(float(np.diag(A).max()), 1e-300)
         D = np.diag(np.maximum(np.diag(A), 1e-6 * dmax))
-        try:
-            gn = -np.linalg.lstsq(A, g, rcond=1e-14)[0]   # undamped Gauss-Newton step
-        except np.linalg.LinAlgError:
-            gn = np.full_like(g, np.inf)
-        decrement = float(-g @ gn)   # expected chi^2 reduction of the full GN step
+        gn, decrement = _gn_step(A, g)   # undamped GN step, expected chi^2 reduction
         # the decrement has a floor set by Jacobian errors (finite differences,
         # eigen-solver tolerance) times the misfit: allow 1e-7 chi^2 on top
         # (a remaining error of ~3e-4 sqrt(chi^2) standard deviations)
         if np.max(np.abs(gn)) < xtol or decrement < dtol + 2e-7 * cost or cost == 0.0:
-            return theta, True, it - 1, "Gauss-Newton step below tolerance"
+            if not prob.quasi_used:
+                return theta, True, it - 1, "Gauss-Newton step below tolerance"
+            r, J = full_jac(theta)          # confirm with a fresh finite-difference Jacobian
+            A, g = J.T @ J, J.T @ r
+            gn, decrement = _gn_step(A, g)
+            if np.max(np.abs(gn)) < xtol or decrement < dtol + 2e-7 * cost:
+                return theta, True, it - 1, "Gauss-Newton step below tolerance"
         if stalled >= 2:
             return theta, decrement < 1e-4, it - 1, "misfit stalled"
 
         accepted = False
-        for _ in range(40):
+        for trial_no in range(40):
+            if trial_no == 3 and prob.quasi_used:   # poor quasi-Newton model: refresh it
+                r, J = full_jac(theta)
+                A, g = J.T @ J, J.T @ r
+                D = np.diag(np.maximum(np.diag(A), 1e-6 * max(float(np.diag(A).max()), 1e-300)))
             try:
                 step = -np.linalg.solve(A + mu * D, g)
             except np.linalg.LinAlgError:
@@ -565,7 +623,7 @@ def _lm(prob: _Problem, theta: np.ndarray, tp: np.ndarray, w: np.ndarray, xtol: 
                         "step": float(np.max(np.abs(step))), "mu": float(mu)})
         if callback:
             callback(history[-1])
-        r, J = full_jac(theta)
+        r, J = full_jac(theta, quasi=True)
     return theta, False, max_iter, "maximum iterations reached"
 
 

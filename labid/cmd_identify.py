@@ -36,7 +36,9 @@ def register(sub) -> None:
     p.add_argument("--workers", type=int, default=2, metavar="W", help="processes for --starts (default 2)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run --starts on a Dask distributed scheduler")
     p.add_argument("--plot", metavar="PATH", help="scatter plot of the multi-start study (PNG)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of --starts")
+    p.add_argument("--seed", type=int, default=0, help="random seed of --starts and --mcmc")
+    p.add_argument("--mcmc", type=int, default=0, metavar="STEPS",
+                   help="also sample the full posterior by MCMC (emcee) with STEPS steps per walker")
     add_json_option(p)
     p.set_defaults(func=_run)
 
@@ -56,6 +58,13 @@ def _run(args: argparse.Namespace) -> dict:
     est = run(problem, names, start, method=args.method, prior=args.prior)
     out = est.to_dict()
     out["data"] = list(problem.kinds)
+    if args.mcmc:
+        if args.mcmc < 10:
+            raise UserError(f"value {args.mcmc}: expected at least 10 steps", key="--mcmc")
+        from engine.identify_mcmc import sample_posterior  # noqa: PLC0415
+        prior = args.prior if args.method == "lm" else None
+        out["posterior"] = sample_posterior(problem.blocks, est, prior=prior, n_steps=args.mcmc,
+                                            seed=args.seed).to_dict()
     out["specimen"] = problem.specimen.name
     if args.starts:
         st0 = _start(problem, est.names, start)
@@ -102,6 +111,10 @@ def _print(out: dict, names) -> None:
     w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
     for msg in out["warnings"]:
         w(f"  note: {msg}\n")
+    if "posterior" in out:
+        ps = out["posterior"]
+        w(f"  MCMC posterior ({ps['n_samples']} samples, acceptance {ps['acceptance']:.2f}): "
+          + ", ".join(f"{n} std {ps['std'][n]:.3g}" for n in ps["names"]) + "\n")
     if "multi_start" in out:
         ok = sum(1 for m in out["multi_start"] if m.get("converged"))
         w(f"  multi-start: {ok}/{len(out['multi_start'])} converged\n")

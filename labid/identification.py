@@ -298,6 +298,11 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     except IdentificationError as e:
         raise UserError(str(e), file=problem.source) from None
     warnings = list(est.warnings) + list(problem.notes)
+    chi2 = sum(r["chi2"] for r in est.residuals.values())
+    n = sum(r["n"] for r in est.residuals.values())
+    if chi2 > 10.0 * n:
+        warnings.append(f"poor fit: chi^2/n = {chi2 / n:.3g} (expected ~1 with the stated sigmas): "
+                        "a local minimum, or a model/data mismatch (see labid diagnose)")
     if problem.modal_forward is not None:
         warnings += problem.modal_forward.warnings
     return replace(est, warnings=tuple(warnings))
@@ -331,8 +336,10 @@ def _job(spec: tuple) -> dict:
         est = run(problem, names, start, method=method, prior=prior)
     except UserError as e:  # a start that is unphysical: record, do not stop the study
         return {"start": dict(start), "error": str(e)}
+    chi2 = sum(r["chi2"] for r in est.residuals.values())
+    n = sum(r["n"] for r in est.residuals.values())
     return {"start": dict(start), "values": est.params, "std": dict(zip(est.names, est.std.tolist())),
-            "converged": est.converged, "iterations": est.iterations,
+            "converged": est.converged, "chi2_per_point": chi2 / n, "iterations": est.iterations,
             "residual": est.residual_summary(), "seconds": est.seconds}
 
 
