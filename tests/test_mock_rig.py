@@ -1,7 +1,6 @@
 """The simulated rig: exact modal response, plate FE peaks, ADC/trigger/filter laws, effects."""
 from __future__ import annotations
 
-from dataclasses import replace
 
 import numpy as np
 import pytest
