@@ -171,8 +171,11 @@ class AcquisitionSession:
         session to its planned size). Returns the summary (the ``--json`` result).
         """
         stop = should_stop or (lambda: False)
-        want = {"hammer": self.rig.hits if n_hits is None else int(n_hits),
-                "wave": self.rig.waves if n_waves is None else int(n_waves)}
+        # rig defaults apply only to the kinds the rig has a device for
+        want = {"hammer": (self.rig.hits if self.rig.device("hammer") else 0) if n_hits is None
+                else int(n_hits),
+                "wave": (self.rig.waves if self.rig.device("wave") else 0) if n_waves is None
+                else int(n_waves)}
         for k, n in want.items():
             if n < 0:
                 raise UserError(f"value {n}: expected a non-negative count", key=f"--{k}s")

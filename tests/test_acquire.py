@@ -13,6 +13,7 @@ import pytest
 
 from labid.acquisition import AcquisitionSession
 from labid.cli import main
+from labid.errors import UserError
 from labid.rig import load_rig, read_rig_text, rig_from_text
 from labid.runstore import RunStore
 from labid.specimen import load_specimen
@@ -215,8 +216,10 @@ def test_documented_example_rig_records_hammer_triggered_waves(tmp_path):
     assert rig.device("wave").trigger.channel == "hammer_hf"
     assert rig.wave_sensor("strain1").distance_m == 0.375
     with RunStore(tmp_path / "ex.h5") as s:
-        summary = AcquisitionSession(rig, "aluminium", s).run(0, 1)
+        summary = AcquisitionSession(rig, "aluminium", s).run(None, 1)   # no hammer device
         rec = s.shots("wave")[0]
+        with pytest.raises(UserError, match="role 'hammer'"):
+            AcquisitionSession(rig, "aluminium", s).run(1, 0)
     assert summary["complete"] and rec.scaled("hammer_hf").max() > 10.0   # N, of the 20 N hit
 
 
