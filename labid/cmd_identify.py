@@ -79,7 +79,7 @@ def _run(args: argparse.Namespace) -> dict:
                 raise UserError("dask.distributed is not installed (pip install 'dask[distributed]')",
                                 key="--scheduler") from None
             try:
-                client = Client(args.scheduler, timeout=10)
+                client = Client(args.scheduler, timeout="5s")
             except (OSError, TimeoutError) as e:
                 raise UserError(f"cannot reach scheduler {args.scheduler!r}: {e}", key="--scheduler") from None
             executor = client.get_executor()
