@@ -44,6 +44,12 @@ def main() -> None:
                            repeat=5 if method == "pywt" else 9)
             rows.append((wl.name, f"{freqs[0] / 1e3:g}-{fmax / 1e3:g} kHz", f"{method} ({prec})", b * 1e3, m * 1e3))
 
+        waves.cwt_decimated(x, fs, freqs, wl)
+        b, m = best_of(lambda: waves.cwt_decimated(x, fs, freqs, wl), repeat=9)
+        step = waves.cwt_decimated(x, fs, freqs, wl)[1]
+        rows.append((wl.name, f"{freqs[0] / 1e3:g}-{fmax / 1e3:g} kHz", f"cwt_decimated (every {step} samples)",
+                     b * 1e3, m * 1e3))
+
         def pipeline():
             W = waves.cwt(x, fs, freqs, wl)
             a = waves.arrival_times(W, fs, freqs, wl, min_snr_db=-100, min_rel_db=-100)
