@@ -58,7 +58,8 @@ ALPHA_ISOTROPIC = -4.0e-4  # E, G of an isotropic metal (aluminium ~ -0.04 %/K)
 class Effects:
     """Unmodelled effects injected into the simulated rig (CONTRACT names, SI units).
 
-    sensor_mass: kg added to the plate at every accelerometer position.
+    sensor_mass: kg added at every accelerometer position on top of the mass the
+        rig file declares (``mass_kg``, always simulated and modelled).
     support_stiffness: N/m, a transverse spring at every rig support point.
     temperature: K, specimen temperature minus the temperature its constants
         hold at; moduli scale by (1 + alpha dT), alpha = ALPHA_FIBRE for E1,
@@ -384,7 +385,10 @@ def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple
 def _vibration(rig, specimen, lam, effects, channels, t) -> dict[str, np.ndarray]:
     sim, ham = rig.sim, rig.hammer
     accs = [c for c in channels if c.kind == "accelerometer"]
-    masses = tuple((c.x, c.y, effects.sensor_mass) for c in accs) if effects.sensor_mass else ()
+    # the declared sensor masses are always on the plate (the model knows them);
+    # the sensor_mass effect is mass beyond what the rig file declares
+    masses = tuple((c.x, c.y, c.mass_kg + effects.sensor_mass) for c in accs
+                   if c.mass_kg + effects.sensor_mass > 0.0)
     springs = tuple((x, y, effects.support_stiffness) for x, y in rig.supports) \
         if effects.support_stiffness else ()
     out: dict[str, np.ndarray] = {}

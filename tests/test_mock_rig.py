@@ -61,8 +61,11 @@ def test_simulated_device_speaks_the_protocol(cfrp):
 def test_accelerometer_spectrum_peaks_at_plate_fe_frequencies(cfrp):
     """The strongest spectral peaks of an accelerometer record sit on the plate FE
     natural frequencies (computed here independently by engine.plate_fe)."""
+    from engine.plate_fe import PlateModel
     rig = load_rig()
-    fe = natural_frequencies(cfrp.laminate, cfrp.length, cfrp.width, n=12)
+    model = PlateModel.build(cfrp.laminate, cfrp.length, cfrp.width).with_point_masses(
+        [(c.x, c.y, c.mass_kg) for c in rig.accelerometers])     # the declared sensor masses
+    fe = model.solve(12).frequencies_hz
     rec = shot(rig, cfrp)
     fs, df = rec.timing.rate_hz, rec.timing.rate_hz / rec.timing.samples
     total = 0
@@ -163,13 +166,16 @@ def test_temperature_and_thickness_scale_frequencies_exactly():
 
 @pytest.mark.slow
 def test_sensor_mass_and_springs_put_the_peaks_on_the_modified_plate(cfrp):
-    """With added accelerometer masses (springs at the supports) the record's peaks
-    follow the FE frequencies of the plate carrying them, not the nominal ones."""
+    """With extra accelerometer mass (springs at the supports) the record's peaks
+    follow the FE frequencies of the plate carrying them, not the nominal ones
+    (the nominal plate carries the masses the rig file declares)."""
     from engine.plate_fe import PlateModel
     rig = load_rig()
-    model = PlateModel.build(cfrp.laminate, cfrp.length, cfrp.width)
-    accs = [(c.x, c.y) for c in rig.accelerometers]
-    cases = [(Effects(sensor_mass=0.02), model.with_point_masses([(x, y, 0.02) for x, y in accs])),
+    bare = PlateModel.build(cfrp.laminate, cfrp.length, cfrp.width)
+    accs = [(c.x, c.y, c.mass_kg) for c in rig.accelerometers]
+    assert all(m > 0 for *_, m in accs)             # the rig declares its sensor masses
+    model = bare.with_point_masses(accs)             # ... which are always on the plate
+    cases = [(Effects(sensor_mass=0.02), bare.with_point_masses([(x, y, m + 0.02) for x, y, m in accs])),
              (Effects(support_stiffness=3e4), model.with_springs([(x, y, 3e4) for x, y in rig.supports]))]
     nominal = model.solve(4).frequencies_hz
     for eff, m in cases:
