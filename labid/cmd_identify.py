@@ -105,7 +105,8 @@ def _print(out: dict, names) -> None:
     for n in names:
         v, s = out["parameters"][n]["value"], out["parameters"][n]["std"]
         unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
-        flag = "" if ident[n]["identified"] else "   (poorly identified)"
+        flag = "" if ident[n]["identified"] else (
+            f"   (poorly identified; +-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
         w(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}\n")
     r = out["residual"]
     w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
