@@ -44,10 +44,26 @@ def dispose(w: MainWindow) -> None:
     collector at interpreter exit can crash it)."""
     import gc
 
+    from PySide6.QtCore import QEvent
     from PySide6.QtWidgets import QApplication
     w.close()
     w.deleteLater()
+    QApplication.sendPostedEvents(None, QEvent.DeferredDelete)
     QApplication.processEvents()
+    gc.collect()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _collect_qt_objects():
+    """Collect the Qt wrappers of this module while the QApplication still lives."""
+    yield
+    import gc
+
+    from PySide6.QtCore import QEvent
+    from PySide6.QtWidgets import QApplication
+    if QApplication.instance() is not None:
+        QApplication.sendPostedEvents(None, QEvent.DeferredDelete)
+        QApplication.processEvents()
     gc.collect()
 
 

@@ -48,3 +48,12 @@ def plot(title: str = "", x: tuple[str, str] = ("", ""), y: tuple[str, str] = ("
         w.setLabel("left", y[0], y[1])
     w.getAxis("left").setWidth(62)
     return w
+
+
+def empty_note(w: pg.PlotWidget, text: str) -> None:
+    """A grey note in the middle of an empty plot (after ``clear()``)."""
+    item = pg.TextItem(text, color="#777777", anchor=(0.5, 0.5))
+    w.addItem(item)
+    vb = w.getPlotItem().vb
+    (x0, x1), (y0, y1) = vb.viewRange()
+    item.setPos(0.5 * (x0 + x1), 0.5 * (y0 + y1))

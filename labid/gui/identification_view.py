@@ -20,7 +20,7 @@ from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, 
                                QLineEdit, QSpinBox, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
 from ..errors import UserError
-from .common import Banner, backend, plot
+from .common import Banner, backend, empty_note, plot
 from .worker import Cancelled
 
 DATA = ("modal", "waves", "combined")
@@ -131,6 +131,8 @@ class IdentificationView(QWidget):
         self.ident_plot = plot("identifiability: posterior rel. std per data set", ("parameter", ""),
                                ("rel. std", ""))
         self.ident_plot.setLogMode(y=True)
+        self.ident_plot.getAxis("left").enableAutoSIPrefix(False)
+        self.history_plot.getAxis("left").enableAutoSIPrefix(False)
         self.ident_plot.addLegend(offset=(5, 5))
 
         left = QVBoxLayout()
@@ -140,7 +142,8 @@ class IdentificationView(QWidget):
         left.addWidget(self.summary)
         lw = QWidget()
         lw.setLayout(left)
-        lw.setMaximumWidth(520)
+        lw.setMinimumWidth(500)
+        lw.setMaximumWidth(560)
         plots = QGridLayout()
         plots.addWidget(self.history_plot, 0, 0)
         plots.addWidget(self.ident_plot, 0, 1)
@@ -368,6 +371,10 @@ class IdentificationView(QWidget):
         self.multi_plot.clear()
         runs = out.get("multi_start") or []
         names = list(params)
+        if not runs:
+            self.multi_plot.setXRange(0, 1)
+            self.multi_plot.setYRange(0, 2)
+            empty_note(self.multi_plot, "no multi-start study in this result (set 'multi-start runs' > 0)")
         if runs:
             idx = np.arange(1, len(runs) + 1)
             for k, n in enumerate(names):

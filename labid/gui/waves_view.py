@@ -12,7 +12,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
-from .common import Banner, plot
+from .common import Banner, empty_note, plot
 
 COLORS = {"A0": "#1f77b4", "S0": "#d62728", "SH0": "#2ca02c"}
 
@@ -23,6 +23,8 @@ class WavesView(QWidget):
         self.main = main
         self.banner = Banner()
         self.shot_combo = QComboBox()
+        self.shot_combo.setSizeAdjustPolicy(QComboBox.AdjustToContents)
+        self.shot_combo.setMinimumContentsLength(18)
         self.info = QLabel("")
         self.scalogram = plot("scalogram |W(f, t)|", ("time after trigger", "s"), ("frequency", "Hz"))
         self.image = pg.ImageItem()
@@ -57,9 +59,14 @@ class WavesView(QWidget):
             return
         res = self.main.read_results("analysis")
         self._res = res
-        if not res or not res.get("waves"):
+        if not res:
             self.banner.info("no group velocities yet: record wave shots and press 'Analyze run' (Modes tab)"
                              if self.main.run_path else "no run file yet: acquire first")
+        elif not res.get("waves"):
+            notes = [n for n in np.atleast_1d(res.get("notes", [])) if "A0" in str(n) or "S0" in str(n)
+                     or "wave" in str(n)]
+            self.banner.warn("the analysis found no usable group velocities in this run"
+                             + (": " + "; ".join(map(str, notes)) if notes else ""))
         else:
             self.banner.info("arrival ridge and group velocities of the analysis; SAFE curves of the "
                              "nominal and the identified constants")
@@ -138,6 +145,10 @@ class WavesView(QWidget):
         p = self.velocity
         p.clear()
         curves = (self._res or {}).get("waves") or {}
+        if not curves:
+            p.setXRange(0, 1)
+            p.setYRange(0, 1)
+            empty_note(p, "no group velocities in this run")
         for key, c in curves.items():
             mode = key.split("_")[0]
             ok = np.asarray(c.get("valid", np.ones(len(c["frequency_hz"]))), bool)

@@ -1,23 +1,30 @@
-"""Long work off the GUI thread: a ``Job`` runs ``fn(progress, should_stop)`` in a QThread.
+"""Long work off the GUI thread: a ``Job`` runs ``fn(progress, should_stop)`` in a thread.
 
-The function reports through ``progress(obj)`` (delivered to the GUI thread as the
-``progress`` signal) and polls ``should_stop()`` to end early after ``cancel()``.
-Errors a user can cause (``UserError``, ``AcquisitionError``, back-end
-``ValueError`` subclasses) arrive as ``failed(one line)``; anything else as
-``failed('internal error: ...')`` with the traceback printed to stderr only.
+The function reports through ``progress(obj)`` and polls ``should_stop()`` to end
+early after ``cancel()``. Errors a user can cause (``UserError``,
+``AcquisitionError``, back-end ``ValueError`` subclasses) arrive as
+``failed(one line)``; anything else as ``failed('internal error: ...')`` with
+the traceback printed to stderr only.
+
+The worker never touches Qt: it puts its events in a queue that a timer of the
+GUI thread drains, and the Qt signals (``progress``, ``succeeded``, ``failed``,
+``ended``) are emitted there, so every slot runs in the GUI thread.
 """
 from __future__ import annotations
 
+import queue
 import sys
 import threading
 import traceback
 from typing import Any, Callable
 
-from PySide6.QtCore import QObject, QThread, Signal
+from PySide6.QtCore import QObject, QTimer, Signal
 
 from drivers.protocol import AcquisitionError
 
 from ..errors import UserError
+
+POLL_MS = 15
 
 
 class Cancelled(Exception):
@@ -28,36 +35,14 @@ def one_line(exc: BaseException) -> str:
     """The message a user sees for an exception: one line, no traceback."""
     text = str(exc).strip().splitlines()
     msg = text[0] if text else type(exc).__name__
-    if isinstance(exc, (UserError, AcquisitionError)):
-        return msg
-    if isinstance(exc, ValueError):
+    if isinstance(exc, (UserError, AcquisitionError, ValueError)):
         return msg
     return f"internal error ({type(exc).__name__}: {msg})"
 
 
-class _Thread(QThread):
-    def __init__(self, job: "Job"):
-        super().__init__()
-        self.job = job
-
-    def run(self) -> None:  # noqa: D102 - executed in the worker thread
-        job = self.job
-        try:
-            result = job.fn(job._emit_progress, job.should_stop)
-        except Cancelled:
-            job.failed.emit("cancelled")
-            return
-        except BaseException as e:  # noqa: BLE001 - nothing may escape into Qt
-            if not isinstance(e, (UserError, AcquisitionError, ValueError)):
-                traceback.print_exc(file=sys.stderr)
-            job.failed.emit(one_line(e))
-            return
-        job.succeeded.emit(result)
-
-
 class Job(QObject):
-    """One background task. Signals: progress(obj), succeeded(result), failed(message),
-    and ``ended`` after either (the thread has finished)."""
+    """One background task. Signals (GUI thread): progress(obj), succeeded(result),
+    failed(message), and ``ended`` after either."""
 
     progress = Signal(object)
     succeeded = Signal(object)
@@ -68,16 +53,53 @@ class Job(QObject):
         super().__init__()
         self.name, self.fn = name, fn
         self._stop = threading.Event()
-        self._thread = _Thread(self)
-        self._thread.finished.connect(self.ended.emit)
+        self._done = threading.Event()
+        self._events: queue.SimpleQueue = queue.SimpleQueue()
+        self._thread = threading.Thread(target=self._run, name=f"labid-job-{name}", daemon=True)
+        self._timer = QTimer(self)
+        self._timer.setInterval(POLL_MS)
+        self._timer.timeout.connect(self._drain)
 
-    def _emit_progress(self, obj: Any) -> None:
-        self.progress.emit(obj)
+    # -- worker thread ------------------------------------------------------
+    def _run(self) -> None:
+        put = self._events.put
+        try:
+            result = self.fn(lambda obj: put(("progress", obj)), self.should_stop)
+        except Cancelled:
+            put(("failed", "cancelled"))
+        except BaseException as e:  # noqa: BLE001 - nothing may escape the thread
+            if not isinstance(e, (UserError, AcquisitionError, ValueError)):
+                traceback.print_exc(file=sys.stderr)
+            put(("failed", one_line(e)))
+        else:
+            put(("succeeded", result))
+        finally:
+            self._done.set()
+            put(("ended", None))
+
+    # -- GUI thread -----------------------------------------------------------
+    def _drain(self) -> None:
+        while True:
+            try:
+                kind, obj = self._events.get_nowait()
+            except queue.Empty:
+                return
+            if kind == "progress":
+                self.progress.emit(obj)
+            elif kind == "succeeded":
+                self.succeeded.emit(obj)
+            elif kind == "failed":
+                self.failed.emit(obj)
+            else:
+                self._timer.stop()
+                self.ended.emit()
+                return
 
     def should_stop(self) -> bool:
         return self._stop.is_set()
 
     def start(self) -> None:
+        self._timer.start()
         self._thread.start()
 
     def cancel(self) -> None:
@@ -89,17 +111,15 @@ class Job(QObject):
         return self._stop.is_set()
 
     def is_running(self) -> bool:
-        return self._thread is not None and self._thread.isRunning()
+        return not self._done.is_set()
 
     def wait(self, ms: int = 30000) -> bool:
-        return self._thread.wait(ms) if self._thread is not None else True
+        """Block until the worker has finished (events are delivered by the timer)."""
+        return self._done.wait(ms / 1000.0)
 
     def release(self) -> None:
-        """Drop the finished thread and the connections (no cycles left for the GC)."""
-        th, self._thread = self._thread, None
-        if th is not None:
-            th.job = None
-            th.deleteLater()
+        """Drop the function and the connections once finished (no cycles left)."""
+        self._timer.stop()
         self.fn = None
         import warnings
         with warnings.catch_warnings():
