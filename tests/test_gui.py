@@ -377,3 +377,39 @@ def test_wave_shot_scalogram(win, qtbot, tmp_path):
     assert win.waves.shot_combo.count() == 2
     assert win.waves.image.image is not None and win.waves.image.image.shape[1] == 100
     shot(win, "view_waves")
+
+
+def test_abort_keeps_every_recorded_hit(win, qtbot, tmp_path):
+    set_rig(win, fast_rig_text())
+    acq = win.acquisition
+    run = tmp_path / "abort.h5"
+    acq.run_edit.setText(str(run))
+    acq.hits_spin.setValue(100_000)
+    acq.waves_spin.setValue(0)
+    qtbot.mouseClick(acq.start_btn, Qt.LeftButton)
+    qtbot.waitUntil(lambda: acq.done["hammer"] >= 2, timeout=60_000)
+    qtbot.mouseClick(acq.abort_btn, Qt.LeftButton)
+    qtbot.waitUntil(lambda: win.job is None, timeout=60_000)
+    summary = acq.last_summary
+    assert summary["interrupted"] and 2 <= summary["recorded"]["hammer"] < 100_000, (
+        {k: summary[k] for k in ("interrupted", "recorded", "problems", "complete")})
+    with RunStore(run, "r") as st:
+        assert st.n_shots("hammer") == summary["recorded"]["hammer"] == acq.done["hammer"]
+    assert "interrupted" in win.messages[-1][0]
+
+
+def test_overload_light_turns_red(win, qtbot, tmp_path):
+    """acc1 given a 1 mV range: every hit clips it; the light shows it and the shot is redone."""
+    text = fast_rig_text()
+    head = text.index('name = "acc1"')
+    cut = text.index("range_v = 5.0", head)
+    text = text[:cut] + "range_v = 0.001" + text[cut + len("range_v = 5.0"):]
+    set_rig(win, text)
+    acquire(qtbot, win, tmp_path / "over.h5", 1, 0)
+    acq = win.acquisition
+    assert acq.lights["acc1"].state is True and acq.lights["acc2"].state is False
+    assert any("overload on acc1" in acq.log.item(i).text() for i in range(acq.log.count()))
+    text, error = win.messages[-1]
+    assert error and "gave up" in text
+    win.tabs.setCurrentIndex(1)
+    shot(win, "acquisition_overload")

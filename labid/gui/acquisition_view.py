@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QGridLayout, QGroupBox,
                                QHBoxLayout, QLabel, QLineEdit, QListWidget, QProgressBar,
                                QPushButton, QSpinBox, QSplitter, QVBoxLayout, QWidget)
@@ -106,10 +106,10 @@ class AcquisitionView(QWidget):
         self.run_btn = QPushButton("New/choose…")
         # plan
         self.hits_spin = QSpinBox()
-        self.hits_spin.setRange(0, 1000)
+        self.hits_spin.setRange(0, 1_000_000)
         self.hits_spin.setValue(5)
         self.waves_spin = QSpinBox()
-        self.waves_spin.setRange(0, 1000)
+        self.waves_spin.setRange(0, 1_000_000)
         self.waves_spin.setValue(3)
         # trigger
         self.device_combo = QComboBox()
@@ -160,7 +160,7 @@ class AcquisitionView(QWidget):
 
         self.trace_plot = pg.PlotWidget(title="time traces (last record)")
         self.trace_plot.setLabel("bottom", "time", "s")
-        self.trace_plot.addLegend(offset=(-5, 5))
+        self.trace_plot.addLegend(offset=(-5, 5), brush=pg.mkBrush(255, 255, 255, 210))
         self.spec_plot = pg.PlotWidget(title="amplitude spectra (last record)")
         self.spec_plot.setLabel("bottom", "frequency", "Hz")
         self.spec_plot.setLabel("left", "level", "dB")
@@ -185,6 +185,7 @@ class AcquisitionView(QWidget):
         self._rig_changed(main.setup.rig_box.validate())
         self.done = {"hammer": 0, "wave": 0}
         self.planned = {"hammer": 0, "wave": 0}
+        self._pending = None
 
     # -- rig-dependent controls ------------------------------------------------
     def _rig_changed(self, rig) -> None:
@@ -327,8 +328,13 @@ class AcquisitionView(QWidget):
 
     def _progress(self, item) -> None:
         what, obj = item
-        if what == "record":
-            self.show_record(obj)
+        if what == "record":            # draw at most every 100 ms: the latest record wins
+            for name, ov in obj["overload"].items():
+                if name in self.lights:
+                    self.lights[name].set(bool(ov))
+            if self._pending is None:
+                QTimer.singleShot(100, self._flush_record)
+            self._pending = obj
             return
         ev = obj
         self.log.addItem(f"{ev['kind']} {ev['index']}/{ev['total']}: {ev['message']}")
@@ -337,6 +343,11 @@ class AcquisitionView(QWidget):
             self.done[ev["kind"]] += 1
             self.progress.setValue(sum(self.done.values()))
             self._update_counter()
+
+    def _flush_record(self) -> None:
+        d, self._pending = self._pending, None
+        if d is not None:
+            self.show_record(d)
 
     def _update_counter(self) -> None:
         self.counter.setText(f"hits {self.done['hammer']}/{self.planned['hammer']} · "
@@ -365,6 +376,7 @@ class AcquisitionView(QWidget):
 
     def _done(self, summary: dict) -> None:
         self._finish()
+        self._flush_record()
         rec = summary["recorded"]
         msg = (f"acquisition {'interrupted' if summary['interrupted'] else 'done'}: recorded "
                f"{rec['hammer']} hits and {rec['wave']} wave shots; the file holds "

@@ -47,6 +47,7 @@ def plot(title: str = "", x: tuple[str, str] = ("", ""), y: tuple[str, str] = ("
     if y[0]:
         w.setLabel("left", y[0], y[1])
     w.getAxis("left").setWidth(62)
+    w.getAxis("left").enableAutoSIPrefix(False)    # no 'x1e+09' on log axes
     return w
 
 

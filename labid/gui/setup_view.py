@@ -56,7 +56,7 @@ class FileBox(QGroupBox):
         self.editor = TomlEditor()
         self.status = QLabel("")
         self.status.setWordWrap(True)
-        self.status.setMinimumHeight(2 * self.status.fontMetrics().height() + 6)
+        self.status.setMinimumHeight(3 * self.status.fontMetrics().height() + 6)
         top = QHBoxLayout()
         top.addWidget(self.combo, 1)
         for b in (self.open_btn, self.check_btn, self.save_btn, self.saveas_btn):
