@@ -67,7 +67,15 @@ def run_case(seed: int, kind: str, outside: bool) -> dict:
     t0 = time.perf_counter()
     case = draw_case(seed, kind, outside=outside)
     t1 = time.perf_counter()
-    res = run_diagnosis(case.features)
+    try:
+        res = run_diagnosis(case.features)
+    except Exception as exc:  # noqa: BLE001 - recorded as a failed case
+        return {"seed": seed, "kind": kind, "outside": outside, "magnitude": case.magnitude,
+                "verdict": "error", "error": str(exc), "confusable": [], "magnitude_est": None,
+                "magnitude_std": None, "gap": {"before": float("nan"), "after": float("nan"),
+                                               "held_out_before": float("nan"),
+                                               "held_out_after": float("nan")},
+                "seconds_diagnose": time.perf_counter() - t1, "oracle_dchi2": oracle_dchi2(case)}
     t2 = time.perf_counter()
     ft = res["features"]
     r0, r1 = np.asarray(ft["residual_before"]), np.asarray(ft["residual_after"])
@@ -133,7 +141,8 @@ def summary(rows: list[dict]) -> str:
     zs = [abs(r["magnitude_est"] - r["magnitude"]) / r["magnitude_std"] for r in detect
           if r["verdict"] == r["kind"] and r["magnitude_std"]]
     shrink = [r["gap"]["held_out_before"] / r["gap"]["held_out_after"] for r in detect if correct(r)]
-    shrink_m = [r["model_error_before"] / r["model_error_after"] for r in detect if correct(r)]
+    shrink_m = [r["model_error_before"] / r["model_error_after"] for r in detect if correct(r)
+                and "model_error_before" in r]
     out.append("")
     out.append(f"- cases: {len(rows)} ({sum(r['outside'] for r in rows)} from the outside generator)")
     out.append(f"- top-1 accuracy, library effects (confusable set counted right, temperature and "

@@ -225,7 +225,10 @@ class _Fit:
         self.nominal = problem.nominal()
 
     def residual(self, params, effects) -> np.ndarray:
-        return (self.fw.predict(params, effects) - self.y) / self.sigma
+        r = (self.fw.predict(params, effects) - self.y) / self.sigma
+        if not np.all(np.isfinite(r)):
+            raise GapError("model undefined (a wave mode absent) for these constants/effects")
+        return r
 
     def jacobian(self, params: Mapping[str, float], effects: Mapping[str, float],
                  fd_step: float = 1e-5) -> np.ndarray:
@@ -252,7 +255,8 @@ class _Fit:
                 p2 = dict(params)
                 p2[n_] = params[n_] * math.exp(fd_step)
                 cols.append((np.concatenate(fw.predict_waves(p2, effects)) - base) / fd_step)
-            parts.append(np.column_stack(cols) / self.sigma[nm:, None])
+            Jw = np.column_stack(cols) / self.sigma[nm:, None]
+            parts.append(np.where(np.isfinite(Jw), Jw, 0.0))
         return np.vstack(parts)
 
     def blocks(self) -> list[DataBlock]:
@@ -265,8 +269,25 @@ class _Fit:
             out.append(DataBlock("modal", self.y[:nm], self.sigma[:nm],
                                  lambda p: fw.predict_modal(p, {}), jac, kind="modal"))
         if len(self.y) > nm:
-            out.append(DataBlock("waves", self.y[nm:], self.sigma[nm:],
-                                 lambda p: np.concatenate(fw.predict_waves(p, {})), kind="waves"))
+            def wpredict(p):
+                y = np.concatenate(fw.predict_waves(p, {}))
+                if not np.all(np.isfinite(y)):
+                    raise GapError("group velocity undefined (mode absent) for these constants")
+                return y
+
+            def wjac(p, names):
+                y = wpredict(p)
+                cols = []
+                for n_ in names:
+                    p2 = dict(p)
+                    p2[n_] = p[n_] * math.exp(1e-5)
+                    try:
+                        c_ = (np.concatenate(fw.predict_waves(p2, {})) - y) / (1e-5 * p[n_])
+                    except ValueError:
+                        c_ = np.zeros_like(y)
+                    cols.append(np.where(np.isfinite(c_), c_, 0.0))
+                return y, np.column_stack(cols)
+            out.append(DataBlock("waves", self.y[nm:], self.sigma[nm:], wpredict, wjac, kind="waves"))
         return out
 
 
@@ -290,7 +311,10 @@ def diagnose(problem: GapProblem, options: GapOptions | None = None,
     names, nominal = F.names, F.nominal
     blocks = F.blocks()
     prior = Prior(mean=nominal, rel_std={n: opts.prior_rel_std for n in names})
-    est = estimate(blocks, names, nominal, prior=prior, xtol=1e-4, dtol=1e-3, max_iter=30)
+    try:
+        est = estimate(blocks, names, nominal, prior=prior, xtol=1e-4, dtol=1e-3, max_iter=30)
+    except np.linalg.LinAlgError as exc:
+        raise GapError(f"identification of the constants failed ({exc})") from None
     p_hat = est.params
     w = np.full(len(names), 1.0 / opts.prior_rel_std)
     theta_hat = np.log([p_hat[n] for n in names])

@@ -51,12 +51,18 @@ def _sigmas(doc: Mapping, key: str, values: np.ndarray, default_rel: float, note
     return s
 
 
-def problem_from_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>"):
+#: modal frequencies used at most (lowest first)
+MAX_MODES = 12
+
+
+def problem_from_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
+                          max_modes: int = MAX_MODES):
     """GapProblem from a features document (see ``problem_and_notes``)."""
-    return problem_and_notes(doc, base_dir, src)[0]
+    return problem_and_notes(doc, base_dir, src, max_modes)[0]
 
 
-def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>"):
+def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
+                      max_modes: int = MAX_MODES):
     """(GapProblem, notes) from a features document (validated by ``labid.features``; specimen
     path relative to ``base_dir``, a built-in name or inline). Velocities that are
     null/NaN are dropped; absent sigmas default as in ``labid identify``."""
@@ -77,7 +83,12 @@ def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<fea
         if m.get("mode_shapes") is not None:
             pts = np.asarray(m["mode_shapes"]["points"], float)
             vals = np.asarray(m["mode_shapes"]["values"], float)
-        modal = ModalData(f, sig, pts, vals)
+        order = np.argsort(f)
+        if len(f) > max_modes:
+            notes.append(f"modal: {len(f)} frequencies; the lowest {max_modes} are used (the default "
+                         "plate mesh is converged for the lowest modes only)")
+        keep = np.sort(order[:max_modes])
+        modal = ModalData(f[keep], sig[keep], pts, None if vals is None else vals[keep])
     waves = []
     for i, w in enumerate(doc.get("waves") or []):
         f = np.asarray(w["frequency_hz"], float)
@@ -116,7 +127,7 @@ def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<fea
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
                   options=None) -> dict:
     """Diagnosis dict (CONTRACT section 3 keys first) of parsed features."""
-    from engine.gap import diagnose
+    from engine.gap import GapError, diagnose
     from engine.laminate import PhysicsError
 
     problem, notes = problem_and_notes(doc, base_dir, src)
@@ -126,6 +137,8 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
         return res
     except PhysicsError as e:
         raise UserError(f"unphysical nominal constants: {e}", file=src, key="specimen") from None
+    except GapError as e:
+        raise UserError(f"cannot diagnose: {e}", file=src) from None
 
 
 def plot_gap(result: Mapping, path: str | Path) -> None:
