@@ -244,7 +244,8 @@ def _as_gate(gate, nf: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavelet: Wavelet = PAPER_ALUMINIUM, *,
                   t0_index: int = 0, gate_s=None, first_fraction: float = 0.5,
                   noise_rms: np.ndarray | float | None = None, min_snr_db: float = 20.0,
-                  min_rel_db: float = -30.0, max_freq_offset: float = 1.0) -> Arrivals:
+                  min_rel_db: float = -30.0, max_freq_offset: float = 1.0,
+                  max_notch_db: float = 3.0) -> Arrivals:
     """Arrival time of each frequency from the scalogram |W| (nf, n).
 
     gate_s: (lo, hi) times in s (scalars or per frequency); the arrival must be
@@ -258,6 +259,11 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
     max_freq_offset: reject arrivals whose instantaneous frequency is more
         than this many wavelet frequency-std away from the analysis frequency
         (the scalogram there shows leakage of other frequencies).
+    max_notch_db: reject frequencies sitting in a spectral notch (e.g. a zero
+        of the hammer spectrum): where the peak level, averaged over the
+        frequencies one wavelet frequency-std either side, exceeds the level
+        at the frequency by more than this (the window then straddles a sign
+        change of the spectrum and the ridge is not the group delay).
     """
     W = np.asarray(W)
     freqs = np.atleast_1d(np.asarray(freqs_hz, float))
@@ -307,6 +313,15 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
     snr[~np.isfinite(noise)] = np.inf
     rel = 20 * np.log10(np.maximum(peak, tiny) / max(peak.max(), tiny))
     valid = np.isfinite(times)
+    lp = np.log(np.maximum(peak, tiny))
+    sf = wavelet.freq_std_hz(freqs)
+    if nf >= 3:
+        side = 0.5 * (np.interp(freqs - sf, freqs, lp) + np.interp(freqs + sf, freqs, lp))
+        notch = 20 / np.log(10) * (side - lp)
+        edge = (freqs - sf < freqs[0]) | (freqs + sf > freqs[-1])
+        notch[edge] = -np.inf  # one-sided at the ends of the grid: not judged
+    else:
+        notch = np.full(nf, -np.inf)
     for i in range(nf):
         if not valid[i]:
             continue
@@ -316,6 +331,8 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
             reason[i] = f"energy {rel[i]:.1f} dB below the strongest frequency"
         elif abs(finst[i] - freqs[i]) > max_freq_offset * wavelet.freq_std_hz(freqs[i]):
             reason[i] = f"leakage: instantaneous frequency {finst[i]:.4g} Hz"
+        elif notch[i] > max_notch_db:
+            reason[i] = f"spectral notch ({notch[i]:.1f} dB below its neighbours)"
         if reason[i]:
             valid[i] = False
     snr_lin = np.where(np.isfinite(snr), 10 ** (np.minimum(snr, 200) / 10), np.inf)
@@ -369,13 +386,15 @@ def expected_gate(distance_m: float, cg_expected: np.ndarray, *, margin: float =
                   source_time_s: float | np.ndarray = 0.0, reflection_m: float | None = None,
                   faster_cg: np.ndarray | None = None, slower_cg: np.ndarray | None = None,
                   time_std_s: np.ndarray | float = 0.0, clearance: float = 3.0,
-                  mode_clearance: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                  mode_clearance: float = 1.0, echo_margin: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per-frequency gate (s) around an expected group velocity curve (m/s).
 
     Arrivals between ``distance / (cg (1 + margin))`` and ``distance / (cg (1 - margin))``
     after the source. Closed ``clearance`` wavelet time-std (``time_std_s``,
-    from ``Wavelet.time_std_s``) before the earliest possible echo over
-    ``reflection_m`` (shortest reflected path), and opened as long after the
+    from ``Wavelet.time_std_s``) before the earliest echo over
+    ``reflection_m`` (shortest reflected path) travelling at up to
+    ``cg (1 + echo_margin)`` (default: ``margin``; a smaller one when the
+    nominal velocities are known better than the gate's width), and opened as long after the
     latest possible arrival of a faster mode (``faster_cg``, e.g. S0 when
     picking A0), and before the earliest arrival of a slower mode
     (``slower_cg``, e.g. A0 when picking S0), so that none can pull the
@@ -390,7 +409,8 @@ def expected_gate(distance_m: float, cg_expected: np.ndarray, *, margin: float =
     lo = source_time_s + distance_m / (cg * (1 + margin))
     hi = source_time_s + distance_m / (cg * (1 - margin))
     if reflection_m is not None:
-        hi = np.minimum(hi, source_time_s + reflection_m / (cg * (1 + margin)) - clearance * ts)
+        em = margin if echo_margin is None else echo_margin
+        hi = np.minimum(hi, source_time_s + reflection_m / (cg * (1 + em)) - clearance * ts)
     if faster_cg is not None:
         fast = np.asarray(faster_cg, float)
         lo = np.maximum(lo, source_time_s + distance_m / (fast * (1 - margin)) + mode_clearance * ts)
@@ -456,7 +476,8 @@ def group_velocity(far: Arrivals, distance_m: float, near: Arrivals | None = Non
     if keep.sum() < 2:
         return GroupVelocity(f, np.full(f.shape, np.nan), np.full(f.shape, np.nan), np.zeros(f.shape, bool))
     fk, vk, sk = fi[keep], v[keep], sv[keep]
-    inside = (f >= fk[0]) & (f <= fk[-1])
+    # only where the frequency's own arrival was accepted: no bridging over rejected ones
+    inside = (f >= fk[0]) & (f <= fk[-1]) & valid
     vi = np.where(inside, np.interp(f, fk, vk), np.nan)
     si = np.where(inside, np.interp(f, fk, sk), np.nan)
     return GroupVelocity(f, vi, si, inside)

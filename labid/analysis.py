@@ -62,6 +62,7 @@ class AnalysisSettings:
     assign: 'instantaneous' (reassigned, bias-corrected) or 'nominal' (the paper).
     min_wave_snr_db: reject arrivals weaker than this over the pre-trigger noise.
     gate_margin: relative velocity margin of the gates around the nominal SAFE curves.
+    echo_margin: how much faster than nominal an edge echo may travel (it closes the gate).
     """
 
     modal_fmax_hz: float | None = None
@@ -75,6 +76,7 @@ class AnalysisSettings:
     assign: str = "instantaneous"
     min_wave_snr_db: float = 20.0
     gate_margin: float = 0.35
+    echo_margin: float = 0.10
     min_wave_points: int = 5
 
 
@@ -173,8 +175,10 @@ def _noise_rms(x: np.ndarray, pre: int, fs: float, freqs: np.ndarray, wl: waves.
     m = int(0.8 * pre)
     if m < 64:
         return None
-    seg = x[:m] - np.mean(x[:m])
-    return waves.white_noise_level(float(np.std(seg)), fs, freqs, wl)
+    std = float(np.std(x[:m] - np.mean(x[:m])))
+    if not std > 0:  # a noiseless (simulated) record: nothing to compare with
+        return None
+    return waves.white_noise_level(std, fs, freqs, wl)
 
 
 def _combine(curves: list[waves.GroupVelocity]) -> waves.GroupVelocity:
@@ -222,9 +226,20 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
     if not 0 < fmin < fmax < fs / 2:
         raise UserError(f"wave band {fmin:g}..{fmax:g} Hz: expected 0 < fmin < fmax < rate/2 = {fs / 2:g} Hz",
                         key="wave band")
-    freqs = np.linspace(fmin, fmax, settings.n_wave_freqs)
     sensors = [c for c in r0.channels if rig.wave_sensor(c.name) is not None]
     force = next((c for c in r0.channels if c.kind == "force"), None)
+    if force is not None and not settings.wave_band_hz:
+        # a hammer's spectrum has zeros (half-sine: 1.5 / contact time): above them the
+        # force and the response scalograms show the pulse's two edges, not its centre
+        fr = r0.scaled(force.name)
+        spec_f = np.abs(np.fft.rfft(fr - np.median(fr[:max(pre, 1)]), 1 << 16))
+        ff = np.fft.rfftfreq(1 << 16, 1.0 / fs)
+        low = np.flatnonzero((spec_f < 0.1 * spec_f.max()) & (ff > ff[np.argmax(spec_f)]))
+        if low.size and ff[low[0]] < fmax:
+            fmax = max(float(ff[low[0]]), 2 * fmin)
+            notes.append(f"wave band limited to {fmax / 1e3:.3g} kHz, where the source force spectrum "
+                         "falls 20 dB below its peak")
+    freqs = np.linspace(fmin, fmax, settings.n_wave_freqs)
     if not sensors:
         notes.append("wave shots hold no sensor with a distance (rig: distance_m): no velocities")
         return [], {}, {}, {}
@@ -260,7 +275,7 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
             xy = _sensor_xy(rig, ws.channel, r0)
             echo = _echo_path(src_xy, xy, specimen.length, specimen.width) if xy else None
             ts = wl.time_std_s(freqs)
-            kw = dict(reflection_m=echo, time_std_s=ts)
+            kw = dict(reflection_m=echo, time_std_s=ts, echo_margin=settings.echo_margin)
             if mode == "A0":
                 kw.update(cg_expected=cg["A0"], margin=settings.gate_margin, faster_cg=cg_s0)
             else:
@@ -311,8 +326,16 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
             gv, first_arr = measure(mode, wl, recs)
             key = f"{mode}_{direction:g}"
             if gv.valid.sum() < settings.min_wave_points:
+                why: dict[str, int] = {}
+                for r in (first_arr.reason if first_arr is not None else ()):
+                    if r:
+                        k = r.split(" (")[0].split(":")[0].split(" -")[0]
+                        k = "SNR too low" if k.startswith("SNR") else k
+                        why[k] = why.get(k, 0) + 1
+                top = ", ".join(f"{k} x{n}" for k, n in sorted(why.items(), key=lambda t: -t[1])[:3])
                 notes.append(f"{mode} along {direction:g} deg: {int(gv.valid.sum())} valid frequencies "
-                             f"(< {settings.min_wave_points}); not reported")
+                             f"(< {settings.min_wave_points}); not reported (far sensor: {top}; an empty gate "
+                             "means an edge echo or the other mode within the wavelet's reach)")
                 continue
             curves[key] = gv
             arrivals[key] = first_arr

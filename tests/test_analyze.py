@@ -1,8 +1,8 @@
 """labid analyze: run file (simulated rig) -> features file and /results/analysis.
 
 The references are the models the simulated rig was built from: the plate
-FE modes of the specimen (engine.plate_fe) and its SAFE A0 curve (engine.safe),
-with the rig's injected damping (0.5 %).
+FE modes of the specimen with the rig's accelerometer masses (engine.plate_fe)
+and its SAFE A0 curve (engine.safe), with the rig's injected damping (0.5 %).
 """
 from __future__ import annotations
 
@@ -40,7 +40,10 @@ def test_modal_features_match_the_plate_model(analysed):
     _, feats, result = analysed
     assert result == feats  # --json is the features document
     sp = load_specimen("cfrp")
-    fn = PlateModel.build(sp.laminate, sp.length, sp.width).solve(40).frequencies_hz
+    # the simulated plate carries the accelerometers the rig declares (reported in the features)
+    masses = [(a["x"], a["y"], a["mass_kg"]) for a in feats["rig"]["accelerometers"]]
+    assert len(masses) == 3
+    fn = PlateModel.build(sp.laminate, sp.length, sp.width).with_point_masses(masses).solve(40).frequencies_hz
     f = np.array(feats["modal"]["frequencies_hz"])
     z = np.array(feats["modal"]["damping_ratio"])
     assert f.size >= 30  # of the 40 simulated modes (some at nodal lines of the hammer point)
