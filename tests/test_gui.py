@@ -376,6 +376,26 @@ def test_wave_shot_scalogram(win, qtbot, tmp_path):
     win.tabs.setCurrentIndex(3)
     assert win.waves.shot_combo.count() == 2
     assert win.waves.image.image is not None and win.waves.image.image.shape[1] == 100
+    # group velocities as the analysis stores them (here: the A0 SAFE curve of the nominal
+    # plate with 1 % scatter, standing in for a measurement): drawn with error bars over SAFE
+    from engine import safe
+    from labid.specimen import load_specimen
+    f = np.linspace(20e3, 150e3, 12)
+    cg = np.asarray(safe.group_velocity(load_specimen("cfrp").laminate, f, "A0", 0.0))
+    meas = cg * (1 + 0.01 * np.random.default_rng(1).standard_normal(f.size))
+    with RunStore(run, "a") as st:
+        res = st.read_group("analysis")
+        res["waves"] = {"A0_0": {"frequency_hz": f, "group_velocity_m_s": meas, "sigma_m_s": 0.02 * cg,
+                                 "valid": np.ones(f.size, np.uint8)}}
+        st.write_group("analysis", res)
+    win.waves.reload()
+    qtbot.waitUntil(lambda: ("A0", "nominal") in win.waves.safe_curves, timeout=30_000)
+    fs, vs = win.waves.safe_curves[("A0", "nominal")]
+    assert fs.min() == pytest.approx(20e3) and fs.max() == pytest.approx(150e3)
+    assert np.all(np.diff(vs) > 0)       # A0 group velocity rises with frequency (thin plate)
+    import pyqtgraph as pg
+    bars = [it for it in win.waves.velocity.getPlotItem().items if isinstance(it, pg.ErrorBarItem)]
+    assert len(bars) == 1
     shot(win, "view_waves")
 
 

@@ -376,6 +376,7 @@ class IdentificationView(QWidget):
             self.multi_plot.setYRange(0, 2)
             empty_note(self.multi_plot, "no multi-start study in this result (set 'multi-start runs' > 0)")
         if runs:
+            self.multi_plot.enableAutoRange()
             idx = np.arange(1, len(runs) + 1)
             for k, n in enumerate(names):
                 nom = float(nominal.get(n, params[n]["value"]))

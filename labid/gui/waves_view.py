@@ -27,6 +27,7 @@ class WavesView(QWidget):
         self.shot_combo.setMinimumContentsLength(18)
         self.info = QLabel("")
         self.scalogram = plot("scalogram |W(f, t)|", ("time after trigger", "s"), ("frequency", "Hz"))
+        self.scalogram.getAxis("left").enableAutoSIPrefix(True)
         self.image = pg.ImageItem()
         self.image.setColorMap(pg.colormap.get("viridis"))
         self.scalogram.addItem(self.image)
@@ -34,6 +35,7 @@ class WavesView(QWidget):
         self.scalogram.addItem(self.ridge)
         self.velocity = plot("group velocity", ("frequency", "Hz"), ("group velocity", "m/s"))
         self.velocity.addLegend(offset=(-5, -5))
+        self.velocity.getAxis("left").enableAutoSIPrefix(True)
         top = QHBoxLayout()
         top.addWidget(QLabel("record"))
         top.addWidget(self.shot_combo)
@@ -149,6 +151,8 @@ class WavesView(QWidget):
             p.setXRange(0, 1)
             p.setYRange(0, 1)
             empty_note(p, "no group velocities in this run")
+        else:
+            p.enableAutoRange()
         for key, c in curves.items():
             mode = key.split("_")[0]
             ok = np.asarray(c.get("valid", np.ones(len(c["frequency_hz"]))), bool)
@@ -157,7 +161,7 @@ class WavesView(QWidget):
             s = np.asarray(c["sigma_m_s"], float)[ok]
             col = COLORS.get(mode, "#9467bd")
             p.addItem(pg.ErrorBarItem(x=f, y=v, top=s, bottom=s, beam=0.0, pen=pg.mkPen(col)))
-            p.plot(f, v, pen=None, symbol="o", symbolSize=5, symbolBrush=col, name=f"measured {key} deg")
+            p.plot(f, v, pen=None, symbol="o", symbolSize=5, symbolBrush=col, name=f"measured {mode}, {key.partition('_')[2]}°")
         for (mode, which), (f, v) in self.safe_curves.items():
             col = COLORS.get(mode, "#9467bd")
             style = Qt.DashLine if which == "nominal" else Qt.SolidLine
