@@ -32,6 +32,8 @@ def register(sub) -> None:
     p.add_argument("--nominal", action="store_true",
                    help="assign arrivals to the nominal wavelet frequency, as in the paper "
                         "(default: reassigned and bias-corrected, docs/wavelet-bias.md)")
+    p.add_argument("--with-s0", action="store_true",
+                   help="put the S0 group velocities in the features too (always stored in the run)")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -60,7 +62,7 @@ def run(args) -> dict:
     settings = AnalysisSettings(
         modal_fmax_hz=args.modal_fmax, exp_tau_s=args.exp_window,
         wavelet=_pair(args.wavelet, "--wavelet") if args.wavelet else None,
-        wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous")
+        wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous", report_s0=args.with_s0)
     feats = analyze_run(args.run, args.out, settings)
     if getattr(args, "json", None) != "-":
         m = feats.get("modal") or {}
