@@ -35,7 +35,7 @@ class GapView(QWidget):
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.verticalHeader().setVisible(False)
         self.resid_plot = plot("residuals before / after (model − measured) / σ", ("feature", ""), ("", ""))
-        self.resid_plot.addLegend(offset=(5, 5))
+        self.resid_plot.addLegend(offset=(-5, 5), brush=pg.mkBrush(255, 255, 255, 210))
         self.group_plot = plot("χ² per feature by group (1 = noise)", ("χ²/n", ""), ("", ""))
         top = QHBoxLayout()
         top.addWidget(self.run_btn)

@@ -181,12 +181,12 @@ class ModesView(QWidget):
                 self.plot.plot(fp[~manual], yp[~manual] * 1.6, pen=None, symbol="t", symbolSize=11,
                                symbolBrush="#d62728", name="automatic picks")
             if manual.any():
-                self.plot.plot(fp[manual], yp[manual] * 1.6, pen=None, symbol="t", symbolSize=11,
-                               symbolBrush="#ff7f0e", name="manual picks")
+                self.plot.plot(fp[manual], yp[manual] * 1.6, pen=None, symbol="d", symbolSize=13,
+                               symbolBrush="#ff9900", name="manual picks")
         model = self.model_frequencies()
         if model.size:
             self.plot.plot(model, np.full(model.size, top * 6), pen=None, symbol="t1", symbolSize=11,
-                           symbolBrush="#2ca02c", name="identified model")
+                           symbolBrush="#2ca02c", name="model, identified constants")
             for fm in model:
                 self.plot.addItem(pg.InfiniteLine(fm, angle=90, pen=pg.mkPen("#2ca02c", style=Qt.DotLine)))
         fmax = 1.25 * max(fp.max() if fp.size else f[-1] / 1.25, model.max() if model.size else 0)
