@@ -25,21 +25,43 @@ direction: for anisotropic plates it ignores beam steering / the curvature
 of the wave surface. The strain averaged over a sensor of length L centred
 at d is exactly [u(d + L/2) - u(d - L/2)] / L.
 
-Time synthesis: the spectrum of F is taken from dF/dt (finite for steps),
-``F(w) = G(w) / (i w)``; the DC bin is dropped. Dropping DC from a periodic
-record adds an offset, and for quantities with a static part (w, strain) a
-ramp ~ -(final value) t / T; the offset (velocity, acceleration) or the line
-a + b t (displacement, strain) is fitted on the record before the first
+Near field: the propagating-mode sum alone is a far-field (k r >> 1)
+approximation. For a point source its strain has a spurious near-field term
+~ -h / (8 pi D k^2 r^2) ~ 1/f (from H1(kr)/(kr)), which a step force (F ~ 1/f)
+turns into a strain growing linearly in time forever. transient_response
+therefore adds to A0 its evanescent partner (k -> i k; Kirchhoff structure:
+H_n(kr) -> (2i/pi) K_n(kr) for a point source, exp(ikx) -> i exp(-kx) for w and
+-exp(-kx) for u for a line), which cancels it and makes A0 tend to the full
+Kirchhoff Green's function at low frequency (to O((kh)^2), tested). The
+partner decays like exp(-k r), so only k r <~ 10 matters, i.e. kh << 1 where
+this thin-plate form is accurate; higher evanescent modes (|k| ~ pi / h) are
+neglected (d >> h). ``mode_transfer`` adds it only on request (near_field).
+
+Time synthesis: y = int_0^t r dt', where r is the response to dF/dt, whose
+spectrum R = H G is finite for steps (G = FT of dF/dt) and, with the near
+field, integrable at f = 0 for v, a and strain (point strain R ~ ln f: the
+strain of an infinite plate under a point step grows like
+(F h / 16 pi D) ln t, a line step like sqrt(t); a free infinite plate has no
+static state). The DFT of R / (i w) gives the antiderivative except for the
+DC bin of r, which is restored as the mean of Re R over the DC bin's half
+width (quadrature in ln f); the lowest N_LOW_BINS bins use Gauss-Legendre
+bin averages of R instead of midpoint values (R is singular at 0). The one
+remaining constant of integration makes the record vanish before the first
 possible arrival (t < 0.9 (d - L/2) / c_max, c_max = 1.2 x the fastest bulk
-wave speed) and removed, so the record is
-~0 until the fastest mode arrives and w, v, a remain consistent time
-derivatives (to ~1e-3 in the tests). The
-spectrum is tapered by a half cosine over the top 10 % of the band below
-``fmax_hz`` (default: the Nyquist frequency or the force bandwidth,
-whichever is lower). The FFT period is extended until the slowest included
-component (smallest group velocity over the used band, usually A0 at the
-lowest bin) has crossed d before the period ends, so nothing wraps around
-into the returned window; t = 0 is the force onset.
+wave speed); nothing is extrapolated. Exception: displacement, whose R ~ 1/f
+(point) is not integrable (a net force makes an infinite plate drift,
+w ~ t): the DC-drop line a + b t is fitted before the first arrival and
+removed. The FFT period is at least PERIOD_RECORDS (8) records, so the
+wrap-around of ~1/t tails leaves <~ (pi^2 / 12)(t / T)^2 ~ 1.3 % of
+F h / (16 pi D) at the end of the record (the pencil-lead strain follows the
+closed-form Kirchhoff step response to 2 % of its peak, tested), and is
+extended until the slowest included component (smallest group velocity over
+the used band, usually A0 at the lowest bin) has crossed d before the period
+ends; t = 0 is the force onset. The spectrum is tapered by a half cosine
+over the top 10 % of the band below ``fmax_hz`` (default: the Nyquist
+frequency or the force bandwidth, whichever is lower). No sensor high-pass
+is applied: the record is the plate's strain (a real AC-coupled MFC/AE chain
+would remove the slow ln t part; apply its filter to the record).
 """
 from __future__ import annotations
 
@@ -207,6 +229,26 @@ def _spatial(k: np.ndarray, x: float, source: str, kind: str) -> np.ndarray:
     return 0.5 * k * 1j * (k * _hankel(0, kr) - _hankel(1, kr) / x)
 
 
+def _spatial_near(k: np.ndarray, x: float, source: str, kind: str) -> np.ndarray:
+    """Near-field (evanescent, k -> i k) partner of ``_spatial`` for the flexural mode.
+
+    Kirchhoff plate: the point-force Green's function is (i / 8 D k^2) [H0(kr) - H0(ikr)]
+    = (i / 8 D k^2) [H0(kr) + (2i/pi) K0(kr)]; the line force gives
+    (i / 4 D k^3) [exp(ikx) + i exp(-kx)]. So H0 -> (2i/pi) K0, H1 -> (2i/pi) K1 (point)
+    and exp(ikx) -> i exp(-kx) for w, -exp(-kx) for u = -(h/2) dw/dx (line).
+    """
+    if source == "line":
+        e = np.exp(-k * x)
+        return {"w": 1j * e, "u": -e, "du": k * e}[kind]
+    kr = k * x
+    e = np.exp(-kr)                  # K_n(z) = k_ne(z) exp(-z): no overflow, 0 far away
+    if kind == "w":
+        return (1j * k / np.pi) * special.k0e(kr) * e
+    if kind == "u":
+        return (-k / np.pi) * special.k1e(kr) * e
+    return (k / np.pi) * (k * special.k0e(kr) + special.k1e(kr) / x) * e
+
+
 def _check_common(distance_m, quantity, sensor_length_m, source):
     if quantity not in QUANTITIES:
         raise SafeError(f"quantity {quantity!r}: expected one of {QUANTITIES}")
@@ -243,11 +285,20 @@ def _mode_data(model, wmax: float, labels, strict: bool = True):
     return out
 
 
-def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_m, source):
-    """Complex transfer per mode (physics convention), per unit force, on grid f (Hz)."""
+def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_m, source,
+                        near_field: bool = False):
+    """Complex transfer per mode (physics convention), per unit force, on grid f (Hz).
+
+    near_field: add to A0 its evanescent partner (``_spatial_near``), which cancels the
+    spurious 1/r^2 (point) near field of the propagating-only term as k r -> 0.
+    """
     w = TWO_PI * f
     res = {}
     for label, br, j, _cut in data:
+        if near_field and label == "A0":
+            spatial = lambda k, x, s, kind: _spatial(k, x, s, kind) + _spatial_near(k, x, s, kind)
+        else:
+            spatial = _spatial
         kt, lt, dt, ex = _dense_table(br, j)
         k, i, t = _invert_table(kt, lt, dt, w)
         ok = np.isfinite(k)
@@ -261,13 +312,13 @@ def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length
             if quantity == "strain":
                 if sensor_length_m > 0:
                     L = sensor_length_m
-                    sp = (_spatial(kk, distance_m + L / 2, source, "u")
-                          - _spatial(kk, distance_m - L / 2, source, "u")) / L
+                    sp = (spatial(kk, distance_m + L / 2, source, "u")
+                          - spatial(kk, distance_m - L / 2, source, "u")) / L
                 else:
-                    sp = _spatial(kk, distance_m, source, "du")
+                    sp = spatial(kk, distance_m, source, "du")
                 H[ok] = puw * sp / D
             else:
-                Hw = 1j * pww * _spatial(kk, distance_m, source, "w") / D
+                Hw = 1j * pww * spatial(kk, distance_m, source, "w") / D
                 ww = w[ok]
                 H[ok] = {"displacement": Hw, "velocity": -1j * ww * Hw,
                          "acceleration": -ww * ww * Hw}[quantity]
@@ -275,7 +326,22 @@ def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length
     return res
 
 
+def _dc_bin_mean(R, half_width: float, n: int = 48, decades: float = 5.0) -> float:
+    """(1 / a) int_0^a Re R(f) df, a = half_width, for R integrable but possibly singular
+    (~ln f, f^p with p > -1) at 0: trapezoid in ln f on [a 10^-decades, a], the rest
+    from the local power law through the two lowest points."""
+    fq = half_width * np.logspace(-decades, 0.0, n)
+    r = np.real(R(fq))
+    s = np.sum(0.5 * (r[1:] * fq[1:] + r[:-1] * fq[:-1]) * np.diff(np.log(fq)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        p = np.log(abs(r[0] / r[1])) / np.log(fq[0] / fq[1]) if r[0] * r[1] > 0 else 0.0
+    p = p if np.isfinite(p) and p > -0.9 else 0.0
+    return float((s + fq[0] * r[0] / (1.0 + p)) / half_width)
+
+
 BAND_RATIO = 400.0
+N_LOW_BINS = 32       # bins integrated by Gauss-Legendre (singular spectra at f -> 0)
+PERIOD_RECORDS = 8.0  # FFT period >= 8 records: wrap-around of ~1/t tails <~ (1/8)^2
 N_CHEB_MAX = 256      # Chebyshev nodes for lambda (eigenvalues only)
 N_VEC = 64            # nodes for the eigenvector (surface amplitude) series
 
@@ -301,30 +367,35 @@ def _bands(laminate, direction_deg, fmax, f_floor, modes, order, elements_per_pl
         f_hi = f_lo
 
 
-def _transfer_bands(bands, f, distance_m, quantity, sensor_length_m, source) -> np.ndarray:
+def _transfer_bands(bands, f, distance_m, quantity, sensor_length_m, source,
+                    near_field: bool = True) -> np.ndarray:
     H = np.zeros(f.shape, complex)
     for f_lo, f_hi, data in bands:
         sel = (f > f_lo) & (f <= f_hi)
         if np.any(sel):
             H[sel] = sum(_transfer_from_data(data, f[sel], distance_m, quantity, sensor_length_m,
-                                             source).values(), np.zeros(int(sel.sum()), complex))
+                                             source, near_field).values(),
+                         np.zeros(int(sel.sum()), complex))
     return H
 
 
 def mode_transfer(laminate: Laminate, distance_m: float, frequency_hz, *, direction_deg: float = 0.0,
                   quantity: str = "displacement", sensor_length_m: float = 0.0, source: str = "point",
-                  modes=None, order: int | None = None, elements_per_ply: int | None = None) -> dict:
+                  modes=None, order: int | None = None, elements_per_ply: int | None = None,
+                  near_field: bool = False) -> dict:
     """Per-mode frequency response (per newton of force) at the sensor.
 
     Physics convention exp(i(k x - w t)); zero where a mode does not exist.
-    Returns {label: complex array over frequency_hz}.
+    Returns {label: complex array over frequency_hz}. Propagating modes only unless
+    ``near_field``: then 'A0' also carries its evanescent partner (see the module
+    docstring), needed wherever k r is not large (low frequencies, near the source).
     """
     _check_common(distance_m, quantity, sensor_length_m, source)
     f = np.atleast_1d(np.asarray(frequency_hz, float))
     model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
                        fmax_hz=float(f.max()))
     data = _mode_data(model, TWO_PI * float(f.max()), modes)
-    return _transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source)
+    return _transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source, near_field)
 
 
 def transient_response(laminate: Laminate, distance_m: float, force: ForceHistory, fs_hz: float,
@@ -367,7 +438,7 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
             cg = (dt[i] + t * (dt[i + 1] - dt[i])) / (2 * TWO_PI * fl[sel])
             cg_low[sel] = np.minimum(cg_low[sel], np.where(np.isfinite(k) & (cg > 0), cg, np.inf))
     cg_low = np.minimum.accumulate(cg_low[::-1])[::-1]       # slowest at or above f
-    T = max(2.0 * t_rec, t_rec + force.duration_s)
+    T = max(PERIOD_RECORDS * t_rec, t_rec + force.duration_s)
     for _ in range(50):
         cmin = float(np.interp(np.log(1.0 / T), np.log(fl), cg_low))
         if not np.isfinite(cmin):
@@ -377,27 +448,47 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
             break
         T = need
     n_fft = next_fast_len(int(np.ceil(T * fs_hz)), real=True)
-    f = np.arange(n_fft // 2 + 1) * fs_hz / n_fft
+    df = fs_hz / n_fft
+    f = np.arange(n_fft // 2 + 1) * df
     band = (f > 0) & (f <= fmax)
     fb = f[band]
     taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
-    H = _transfer_bands(bands, fb, distance_m, quantity, sensor_length_m, source)
+    args = (distance_m, quantity, sensor_length_m, source)
+    H = _transfer_bands(bands, fb, *args)
+    R = np.conj(H) * force.derivative_spectrum(fb) * taper     # spectrum of r (see below)
+    # the lowest bins: R may be singular at 0 (~ln f), so the bin average of R (4-point
+    # Gauss-Legendre) replaces its midpoint value (the kernel exp(iwt)/(iw) - 1/(iw) of
+    # y = int_0^t r is smooth over a bin)
+    nl = min(N_LOW_BINS, fb.size)
+    if nl and fb[0] < fmax:
+        xg, wg = np.polynomial.legendre.leggauss(4)
+        fq = (fb[:nl, None] + 0.5 * df * xg[None, :]).ravel()
+        Rq = (np.conj(_transfer_bands(bands, fq, distance_m, quantity, sensor_length_m, source))
+              * force.derivative_spectrum(fq)).reshape(nl, 4)
+        R[:nl] = 0.5 * Rq @ wg * taper[:nl]
     Y = np.zeros(f.shape, complex)
-    Y[band] = np.conj(H) * force.spectrum(fb) * taper
+    Y[band] = R / (1j * TWO_PI * fb)
     y = irfft(Y, n=n_fft) * fs_hz
-    # causality: the DC-dropped modal sum carries a constant offset (the period mean of
-    # the quasi-static response); remove it using the part before the first arrival
-    # a mode-independent bound on any guided-wave speed (keeps the correction linear, so
-    # responses of separate modes still add up): 1.2 x the fastest bulk plane-wave speed
+    tt = np.arange(n_fft) / fs_hz
+    if quantity != "displacement":
+        # y = int_0^t r, r = response to dF/dt (spectrum R = H G, integrable at DC for
+        # v, a and strain). The DFT drops r's DC bin; restore it as the mean of Re R over
+        # the bin's half-width [0, df/2] (quadrature in ln f: R may be ~ln f or f^-1/2)
+        R0 = _dc_bin_mean(lambda fq: np.conj(_transfer_bands(bands, fq, *args))
+                          * force.derivative_spectrum(fq), df / 2.0)
+        y = y + df * R0 * tt
+    # t = 0 is the force onset: the one remaining unknown, the constant of
+    # integration, makes the record vanish before the first possible arrival
+    # (bound: 1.2 x the fastest bulk plane-wave speed, mode independent, so responses of
+    # separate modes still add up). Nothing is extrapolated (except w, below).
     c_max = 1.2 * max(float(np.sqrt(np.max(np.diag(C)[:3]) / p.material.density))
                       for p, C in zip(laminate.plies, ply_stiffness(laminate, direction_deg)))
-    if c_max > 0:
-        m = int(0.9 * (distance_m - sensor_length_m / 2) / c_max * fs_hz)
-        if m >= 8 and quantity in ("displacement", "strain"):
-            # quantities with a static part: dropping DC adds a + b t (b = -final value / T)
-            tt = np.arange(m) / fs_hz
-            b, a = np.polyfit(tt, y[:m], 1)
-            y = y - (a + b * np.arange(n_fft) / fs_hz)
-        elif m >= 2:
-            y = y - np.mean(y[:m])
+    m = int(0.9 * (distance_m - sensor_length_m / 2) / c_max * fs_hz) if c_max > 0 else 0
+    if quantity == "displacement" and m >= 8:
+        # w: R ~ 1/f (point) is not integrable (a net force makes an infinite plate drift,
+        # w ~ t); the DC-drop ramp is fitted before the first arrival and removed
+        b, a = np.polyfit(tt[:m], y[:m], 1)
+        y = y - (a + b * tt)
+    else:
+        y = y - (np.mean(y[:m]) if m >= 2 else y[0])
     return y[:n_samples]

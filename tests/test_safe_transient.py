@@ -4,11 +4,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.signal import hilbert
-from scipy.special import hankel1
+from scipy.special import hankel1, k0, k1, sici
 
-from engine.laminate import Laminate, Material, Ply
+from engine.laminate import Laminate, Material, Ply, abdh
 from engine.safe import (ForceHistory, SafeError, dispersion, group_velocity, hammer_force,
                          mode_transfer, pencil_lead_break, tone_burst, transient_response)
+from labid.specimen import load_specimen
 
 AL = Material.isotropic_from(70e9, 2700.0, nu=0.33, name="Al")
 H = 1e-3
@@ -145,3 +146,98 @@ def test_pencil_lead_strain_is_causal():
     assert np.max(np.abs(y[early])) < 1e-2 * np.max(np.abs(y))
     late = np.arange(n) / fs > 1.05 * x / c_s0
     assert np.max(np.abs(y[late])) > 0.5 * np.max(np.abs(y))
+
+
+# --- the quasi-static (low-frequency) part: near field and DC --------------------------
+BETA_AL = np.sqrt(D_PLATE / (2700.0 * H))          # Kirchhoff sqrt(D / rho h), m^2/s
+C_AL = H / (16 * np.pi * D_PLATE)                   # strain per newton per e-fold of t
+
+
+def _kirchhoff_step_strain(t, r):
+    """Surface radial strain eps_rr = -(h/2) w_rr at r of an infinite Kirchhoff plate under a
+    unit point step force (closed form: w_r = -(r / 8 pi D) E(s), s = r^2 / 4 beta t,
+    E(s) = int_s^inf sin(u)/u^2 du = sin(s)/s - Ci(s)); grows like ln t at late times."""
+    s = r ** 2 / (4 * BETA_AL * t)
+    return C_AL * (np.sin(s) / s - sici(s)[1] - 2 * np.sin(s) / s)
+
+
+def _kirchhoff_impulse_strain(t, r):
+    """The same for a unit impulse (d/dt of the above): decays like H / (16 pi D t)."""
+    s = r ** 2 / (4 * BETA_AL * t)
+    return H / (4 * np.pi * BETA_AL * 2700.0 * H * r ** 2) * (2 * s * np.cos(s) - np.sin(s))
+
+
+def test_near_field_completes_the_kirchhoff_greens_function():
+    """With near_field, A0 tends to the FULL Kirchhoff Green's functions, evanescent part
+    included: point (i / 8 D k^2)[H0(kr) + (2i/pi) K0(kr)], line (i / 4 D k^3)[e^{ikx} + i e^{-kx}],
+    down to k r < 1; the propagating term alone is wrong there (spurious 1/r^2 strain)."""
+    f = np.array([20.0, 100.0, 500.0, 2e3, 8e3])
+    r = 0.05
+    k = dispersion(AL_PLATE, f).mode("A0").wavenumber_rad_m
+    kr = k * r
+    assert kr[0] < 0.5 and kr[1] < 1.1
+    G = {"point": 1j / (8 * D_PLATE * k ** 2) * (hankel1(0, kr) + 2j / np.pi * k0(kr)),
+         "line": 1j / (4 * D_PLATE * k ** 3) * (np.exp(1j * kr) + 1j * np.exp(-kr))}
+    # eps = -(h/2) w_rr: (H0(kr))'' = -k^2 (H0 - H1/kr), (K0(kr))'' = k^2 (K0 + K1/kr)
+    E = {"point": -(H / 2) * 1j / (8 * D_PLATE) * (-(hankel1(0, kr) - hankel1(1, kr) / kr)
+                                                 + 2j / np.pi * (k0(kr) + k1(kr) / kr)),
+         "line": -(H / 2) * 1j / (4 * D_PLATE * k) * (-np.exp(1j * kr) + 1j * np.exp(-kr))}
+    for src in ("point", "line"):
+        for q, ref in (("displacement", G[src]), ("strain", E[src])):
+            got = mode_transfer(AL_PLATE, r, f, quantity=q, source=src, modes=("A0",), near_field=True)["A0"]
+            e = np.abs(got / ref - 1)
+            assert np.all(e < (k * H) ** 2), (src, q, e)
+    far = mode_transfer(AL_PLATE, r, f, quantity="strain", source="point", modes=("A0",))["A0"]
+    assert abs(far[0] / E["point"][0] - 1) > 0.5
+
+
+@pytest.mark.parametrize("r", [0.07, 0.2])
+def test_pencil_lead_strain_late_record_follows_kirchhoff(r):
+    """A step force on an infinite plate: the strain at r tends to the closed-form Kirchhoff
+    step response (log growth, no linear ramp) through the whole late record."""
+    fs, n = 2e6, 8000
+    y = transient_response(AL_PLATE, r, pencil_lead_break(), fs, n, quantity="strain")
+    t = np.arange(n) / fs
+    late = t >= 5e-4
+    ref = _kirchhoff_step_strain(t[late], r)
+    assert np.max(np.abs(y[late] - ref)) < 0.03 * np.max(np.abs(y)), np.max(np.abs(y[late] - ref))
+
+
+def test_hammer_strain_tail_is_the_kirchhoff_impulse_response():
+    """A half-sine tap (net impulse 2 F T / pi): after the waves the record decays like the
+    Kirchhoff impulse response ~ 1/t (delayed by T/2), to the end of the record."""
+    fs, n, Tc = 2e6, 8000, 50e-6
+    t = np.arange(n) / fs
+    for r in (0.1, 0.2):
+        y = transient_response(AL_PLATE, r, hammer_force(Tc), fs, n, quantity="strain")
+        late = t > 1e-3
+        ref = 2 * Tc / np.pi * _kirchhoff_impulse_strain(t[late] - Tc / 2, r)
+        assert np.max(np.abs(y[late] - ref)) < 5e-3 * np.max(np.abs(y))
+
+
+def test_tone_burst_record_returns_to_zero():
+    """Zero net impulse, narrow band: once the modes have passed, the record is ~0 to the end."""
+    fs, n = 2e6, 8000
+    y = transient_response(CFRP, 0.1, tone_burst(100e3, 5), fs, n, quantity="strain")
+    t = np.arange(n) / fs
+    assert np.max(np.abs(y[t > 1e-3])) < 1e-3 * np.max(np.abs(y))
+
+
+def test_cfrp_pencil_lead_strain_has_no_ramp():
+    """The reported case (specimen 'cfrp', 2 MHz, 8208 samples): the last quarter of the record
+    stays within the dynamic peak (was a ramp to ~5x the peak at 0.07 m); at 0.07 m it is in the quasi-static regime and grows like ln t with the
+    Kirchhoff slope h / (16 pi D11) per e-fold (D11 from laminate theory, +-20 %: the point
+    response of an anisotropic plate is not the isotropic one), not linearly."""
+    lam = load_specimen("cfrp").laminate
+    fs, n = 2e6, 8208
+    h = sum(p.thickness for p in lam.plies)
+    c = h / (16 * np.pi * abdh(lam).D[0, 0])
+    for d in (0.07, 0.22):
+        y = transient_response(lam, d, pencil_lead_break(), fs, n, quantity="strain")
+        q = 3 * n // 4          # the last quarter: no new maximum, no trend
+        assert np.max(np.abs(y[q:])) <= 1.2 * np.max(np.abs(y[:q]))
+        assert abs(y[-1] - y[q]) < 0.35 * np.max(np.abs(y))
+        if d == 0.07:
+            d1, d2 = y[3 * n // 4] - y[n // 2], y[-1] - y[3 * n // 4]
+            assert 0.8 < d2 / (c * np.log(n / (0.75 * n))) < 1.2, d2
+            assert 0.8 < d1 / (c * np.log(1.5)) < 1.2, d1
