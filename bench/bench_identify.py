@@ -51,6 +51,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="one repeat, 20-start studies")
     ap.add_argument("--plot", metavar="DIR", help="write the multi-start scatter plots here")
+    ap.add_argument("--fig3", type=int, default=0, metavar="N",
+                    help="also a Lai & Ip (bayes) multi-start on noisy modal data, N starts (paper Fig. 3)")
+    ap.add_argument("--skip-studies", action="store_true")
     a = ap.parse_args()
     rep = 1 if a.quick else 3
     n_starts = 20 if a.quick else 100
@@ -88,24 +91,29 @@ def main() -> None:
     print(f"\n| {n_starts}-start study, 2 processes | wall (s) | target (s) | converged | "
           "spread of well-identified (max rel. dev. from truth) |")
     print("|---|---|---|---|---|")
-    studies = [
-        ("waves-only E1,G13,G23", waves_doc, ("E1", "G13", "G23"), ("E1", "G13", "G23")),
-        ("modal-only six (Fig. 3)", modal_doc, SIX, ("E1",)),
+    studies = [] if a.skip_studies else [
+        ("waves-only E1,G13,G23", waves_doc, ("E1", "G13", "G23"), ("E1", "G13", "G23"), "lm"),
+        ("modal-only six (Fig. 3)", modal_doc, SIX, ("E1",), "lm"),
     ]
-    for label, d, names, well in studies:
+    if a.fig3:
+        noisy = synthetic_features("cfrp", n_modes=10, waves=(), noise=True, seed=3, modal_model=model)
+        studies.append(("bayes modal-only six, 0.1 % noise", noisy, SIX, ("E1",), "bayes"))
+    for label, d, names, well, method in studies:
+        n_st = a.fig3 if method == "bayes" else n_starts
         nominal = {n: truth[n] for n in names}
-        starts = random_starts(nominal, names, n_starts, spread=0.5, seed=1,
+        starts = random_starts(nominal, names, n_st, spread=0.5, seed=1,
                                problem=problem_from_features(d, specimen=spec, modal_model=model))
         t = time.perf_counter()
-        res = multi_start(d, starts, names, specimen=spec, max_workers=2)
+        res = multi_start(d, starts, names, specimen=spec, max_workers=2, method=method)
         wall = time.perf_counter() - t
         conv = [r for r in res if r.get("converged")]
         dev = max((abs(r["values"][n] / truth[n] - 1) for r in conv for n in well), default=float("nan"))
-        print(f"| {label} | {wall:.1f} | 60 | {len(conv)}/{len(res)} | {dev:.1e} ({', '.join(well)}) |")
+        print(f"| {label} ({len(res)} starts) | {wall:.1f} | 60 | {len(conv)}/{len(res)} | "
+              f"{dev:.1e} ({', '.join(well)}) |")
         if a.plot:
             Path(a.plot).mkdir(parents=True, exist_ok=True)
-            plot_multi_start(res, names, Path(a.plot) / f"multistart_{label.split()[0]}.png", truth=truth,
-                             title=f"{label}: {n_starts} random starts")
+            plot_multi_start(res, names, Path(a.plot) / f"multistart_{method}_{label.split()[0]}.png",
+                             truth=truth, title=f"{label}: {len(res)} random starts")
 
 
 if __name__ == "__main__":
