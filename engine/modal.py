@@ -320,7 +320,8 @@ def _confidence(snr_db: float, zeta: float) -> float:
 
 def _fit_all(spec: Spectra, f_init: Sequence[float], ind: np.ndarray, *, poly_deg: int = 2,
              min_halfband_bins: int = 6, halfband_widths: float = 5.0, manual: bool = False,
-             halfwidths: Sequence[float] | None = None, snap: Sequence[bool] | None = None):
+             halfwidths: Sequence[float] | None = None, snap: Sequence[bool] | None = None,
+             cache: dict | None = None):
     """Peaks and their poles (z, residues per output) fitted near ``f_init``.
 
     Starting frequencies are snapped to the indicator's local maximum (+-2
@@ -362,7 +363,13 @@ def _fit_all(spec: Spectra, f_init: Sequence[float], ind: np.ndarray, *, poly_de
         if k1 - k0 < need:
             grow = (need - (k1 - k0) + 1) // 2
             k0, k1 = max(1, k0 - grow), min(len(f), k1 + grow)
-        fd, sg, cov, C, snrs, at_bound = _fit_cluster(spec, data, f0[cl], s0[cl], (k0, k1), deg)
+        key = (tuple(f0[cl]), tuple(s0[cl]), k0, k1, deg)
+        if cache is not None and key in cache:  # unchanged cluster of an earlier pass
+            fd, sg, cov, C, snrs, at_bound = cache[key]
+        else:
+            fd, sg, cov, C, snrs, at_bound = _fit_cluster(spec, data, f0[cl], s0[cl], (k0, k1), deg)
+            if cache is not None:
+                cache[key] = (fd, sg, cov, C, snrs, at_bound)
         for q in range(len(cl)):
             sig = sg[q] - (1.0 / tau if tau is not None else 0.0)
             wd = 2 * np.pi * fd[q]
@@ -468,7 +475,8 @@ def pick_peaks(spec: Spectra, *, fmin: float | None = None, fmax: float | None =
     data = spec.fit_data()
     P0 = spec.magnitude ** 2 if spec.kind == "frf" else spec.magnitude
     norm = np.maximum(np.median(P0[:, 1:], axis=1), tiny)
-    peaks, poles = _fit_all(spec, cand, ind, halfwidths=hws, snap=snaps, **fit_kw)
+    cache: dict = {}
+    peaks, poles = _fit_all(spec, cand, ind, halfwidths=hws, snap=snaps, cache=cache, **fit_kw)
     for _ in range(residual_passes if method == "sum" else 0):
         good = [(p, z) for p, z in zip(peaks, poles) if p.confidence >= min_confidence]
         R = data[:, lo:hi] - _pole_model(spec, [z for _, z in good], lo, hi)
@@ -490,7 +498,7 @@ def pick_peaks(spec: Spectra, *, fmin: float | None = None, fmax: float | None =
         cand += [c for c, _ in new]
         hws += [h for _, h in new]
         snaps += [False] * len(new)
-        peaks, poles = _fit_all(spec, cand, ind, halfwidths=hws, snap=snaps, **fit_kw)
+        peaks, poles = _fit_all(spec, cand, ind, halfwidths=hws, snap=snaps, cache=cache, **fit_kw)
     out = [p for p in peaks if p.confidence >= min_confidence
            and (fmin is None or p.frequency_hz >= fmin) and (fmax is None or p.frequency_hz <= fmax)]
     # candidates that converged on the same pole: keep the more confident one

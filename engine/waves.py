@@ -31,6 +31,7 @@ from typing import Literal, Sequence
 
 import numpy as np
 import pywt
+from scipy.special import erf
 from scipy import fft as sfft
 
 __all__ = [
@@ -203,13 +204,17 @@ def cwt_decimated(x: np.ndarray, fs_hz: float, freqs_hz: Sequence[float],
 
 def white_noise_level(std: float, fs_hz: float, freqs_hz: Sequence[float],
                       wavelet: Wavelet = PAPER_ALUMINIUM) -> np.ndarray:
-    """RMS of |W| (per frequency) that white noise of standard deviation ``std`` produces."""
+    """RMS of |W| (per frequency) that white noise of standard deviation ``std`` produces.
+
+    E|W|^2 = std^2 (1/2pi) integral |sqrt(a) psi^(a w)|^2 dw = std^2 / sqrt(2 pi B), the same at
+    every scale (the part of the filter beyond the Nyquist frequency is left out).
+    """
     freqs = np.atleast_1d(np.asarray(freqs_hz, float))
-    nfft = 1 << 16
-    a = wavelet.scales(freqs, fs_hz)[:, None]
-    w = 2 * np.pi * sfft.fftfreq(nfft)[None, :]
-    H = np.sqrt(a) * np.exp(-wavelet.bandwidth * (a * w - 2 * np.pi * wavelet.center) ** 2 / 4)
-    return std * np.sqrt((H ** 2).sum(axis=1) / nfft)
+    a = wavelet.scales(freqs, fs_hz)
+    B, C = wavelet.bandwidth, wavelet.center
+    # fraction of the Gaussian |psi^|^2 (std 1/(a sqrt B) in w) that lies below w = pi
+    frac = 0.5 * (1 + erf((np.pi - 2 * np.pi * C / a) * a * np.sqrt(B) / np.sqrt(2)))
+    return std * np.sqrt(frac / np.sqrt(2 * np.pi * B))
 
 
 @dataclass(frozen=True)

@@ -299,3 +299,12 @@ def test_safe_cfrp_pencil_lead_a0_within_1_percent():
     ok = g2.valid & band
     assert ok.sum() >= 0.8 * band.sum()
     assert np.abs(g2.velocity_m_s[ok] / cg[ok] - 1).max() < 0.01
+
+
+def test_white_noise_level_matches_the_transform_of_noise():
+    x = np.random.default_rng(0).normal(scale=2.0, size=200_000)
+    f = np.array([50e3, 200e3])
+    for wl in (waves.PAPER_ALUMINIUM, waves.PAPER_CFRP):
+        W = waves.cwt(x, FS, f, wl, precision="double")
+        emp = np.sqrt((np.abs(W[:, 20_000:-20_000]) ** 2).mean(axis=1))
+        np.testing.assert_allclose(emp, waves.white_noise_level(2.0, FS, f, wl), rtol=0.03)
