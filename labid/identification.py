@@ -487,3 +487,32 @@ def synthetic_features(specimen: str | Specimen = "cfrp", *, n_modes: int | None
                                  "group_velocity_m_s": (cg + (sig * rng.standard_normal(n) if noise else 0)).tolist(),
                                  "sigma_m_s": sig.tolist()})
     return doc
+
+
+def identify_variants(doc: Mapping, *, specimen: Specimen | None = None, base_dir: str | Path = ".",
+                      start: Mapping[str, float] | None = None, modal_model=None, method: str = "lm",
+                      prior: float | None = None) -> dict[str, Estimate]:
+    """Modal only, waves only and combined estimates from one features document
+    (each with its default parameters; only the variants the data allow).
+
+    ``start`` values are used for the parameters each variant identifies.
+    Returns ``{"modal": Estimate, "waves": Estimate, "combined": Estimate}``.
+    """
+    spec = specimen if specimen is not None else _specimen(validate_features(doc), Path(base_dir), "<features>")
+    has_modal, has_waves = bool(doc.get("modal")), bool(doc.get("waves"))
+    variants = {}
+    if has_modal:
+        variants["modal"] = {k: v for k, v in doc.items() if k != "waves"}
+    if has_waves:
+        variants["waves"] = {k: v for k, v in doc.items() if k != "modal"}
+    if has_modal and has_waves:
+        variants["combined"] = dict(doc)
+    out: dict[str, Estimate] = {}
+    for name, d in variants.items():
+        prob = problem_from_features(d, specimen=spec, modal_model=modal_model)
+        if prob.modal_forward is not None and modal_model is None:
+            modal_model = prob.modal_forward.model     # build the plate model once
+        names = default_params(prob)
+        st = {k: v for k, v in (start or {}).items() if k in names}
+        out[name] = run(prob, names, st, method=method, prior=prior)
+    return out

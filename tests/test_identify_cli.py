@@ -119,3 +119,13 @@ def test_identify_mcmc_posterior_in_json(al_features, tmp_path, capsys):
         assert abs(post["mean"][n] - AL[n]) < 3 * r["parameters"][n]["std"]
     code, _, err = _run([al_features, "--mcmc", "3"], capsys)
     assert code == 2 and "--mcmc" in err
+
+
+def test_identify_variants_splits_the_data():
+    from labid.identification import identify_variants
+
+    doc = synthetic_features("aluminium", n_modes=None, waves=(("A0", 0.0, 50e3, 10),))
+    doc["specimen"] = "aluminium"
+    res = identify_variants(doc, start={"E": 80e9, "G": 30e9})
+    assert list(res) == ["waves"]
+    assert res["waves"].params["E"] == pytest.approx(AL["E"], rel=1e-3)
