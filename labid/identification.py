@@ -29,10 +29,11 @@ from engine.laminate import PhysicsError
 
 from .errors import UserError
 from .features import read_features, specimen_of, validate_features
-from .specimen import Specimen, load_specimen, specimen_from_dict
+from .specimen import Specimen, load_specimen
 
 __all__ = ["Problem", "load_problem", "problem_from_features", "default_params", "parse_assignments",
            "identify", "run", "multi_start", "random_starts", "plot_multi_start", "METHODS",
+           "identify_variants", "synthetic_features", "load_features",
            "DEFAULT_MODAL_SIGMA_REL", "DEFAULT_WAVE_SIGMA_REL"]
 
 METHODS = ("lm", "bayes", "nelder-mead")
