@@ -202,21 +202,31 @@ def fig_scalogram(rd: RunData, feats: dict) -> str | None:
     name = chans[-1]
     x = rec.scaled(name)
     fs = rec.timing.rate_hz
-    fmax = min(0.4 * fs, 500e3)
-    freqs = np.linspace(fmax / 40, fmax, 60)
-    Wm = np.abs(W.cwt(x, fs, freqs, W.Wavelet(2.0, 5.0)))
+    ridge = lookup(rd.results, ("analysis/arrivals", "analysis/waves/arrivals"))
+    wl = W.Wavelet(2.0, 5.0)
+    wname = ridge.get("wavelet") if isinstance(ridge, dict) else None
+    if isinstance(wname, str) and wname.startswith("cmor") and "-" in wname:
+        b, c = wname[4:].split("-", 1)
+        wl = W.Wavelet(float(b), float(c))
+    band = lookup(rd.results, ("analysis/settings/wave_band_hz",))
+    if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
+        fmin, fmax = float(band[0]), float(band[1])
+    else:
+        fmax = min(0.4 * fs, 200e3)
+        fmin = fmax / 20
+    freqs = np.linspace(fmin, fmax, 80)
+    Wm = np.abs(W.cwt(x, fs, freqs, wl))
     t = rec.time()
     plt = _plt()
     fig, ax = plt.subplots(figsize=(9, 3.6))
     ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
-    ridge = lookup(rd.results, ("analysis/arrivals", "analysis/waves/arrivals"))
     if isinstance(ridge, dict) and "times_s" in ridge:
         ax.plot(np.asarray(ridge["times_s"]) * 1e6, np.asarray(ridge["frequencies_hz"]) / 1e3, "w.-",
                 ms=3, lw=0.8, label="picked arrival ridge")
         ax.legend(loc="upper right", fontsize=8)
     ax.set_xlabel("time after trigger (µs)")
     ax.set_ylabel("frequency (kHz)")
-    ax.set_title(f"|CWT| of {rec.meta.get('shot', 'wave shot')}, channel {name} (Morlet B=2, C=5)", fontsize=9)
+    ax.set_title(f"|CWT| of {rec.meta.get('shot', 'wave shot')}, channel {name} ({wl.name})", fontsize=9)
     return _fig_png(fig)
 
 
@@ -233,19 +243,42 @@ def fig_dispersion(rd: RunData, feats: dict) -> str | None:
         ax.errorbar(f / 1e3, v, yerr=s, fmt="o", ms=3, capsize=2,
                     label=f"measured {w.get('mode', '')} {w.get('direction_deg', 0):g}°")
     ident = lookup(rd.results, IDENT_GROUPS)
-    blocks = ident.get("blocks") if isinstance(ident, dict) else None
-    if isinstance(blocks, dict):
-        for name, b in blocks.items():
-            if isinstance(b, dict) and b.get("kind") == "waves" and "predicted" in b and ws:
-                f = np.asarray(ws[0].get("frequency_hz", []), float)
-                p = np.asarray(b["predicted"], float)
-                if p.shape == f.shape:
-                    ax.plot(f / 1e3, p, "-", color="#2ca02c", label=f"SAFE, identified ({name})")
+    params = {n: float(p["value"]) for n, p in ((ident or {}).get("parameters") or {}).items()
+              if isinstance(p, dict) and "value" in p} if isinstance(ident, dict) else {}
+    lam = _laminate(rd)
+    if lam is not None:
+        from engine import safe
+        for w in ws:
+            f = np.asarray(w.get("frequency_hz", []), float)
+            if f.size < 2:
+                continue
+            grid = np.linspace(f.min(), f.max(), 60)
+            mode, d = str(w.get("mode", "A0")), float(w.get("direction_deg", 0.0))
+            for label, la, style in (("nominal", lam, "--"), ("identified", None, "-")):
+                try:
+                    if la is None:
+                        if not params:
+                            continue
+                        la = lam.with_params(params)
+                    v = np.asarray(safe.group_velocity(la, grid, mode, d), float)
+                except (ValueError, KeyError, TypeError):
+                    continue
+                ax.plot(grid / 1e3, v, style, color="#2ca02c" if la is not lam else "0.4",
+                        label=f"SAFE {mode}, {label} constants")
     ax.set_xlabel("frequency (kHz)")
     ax.set_ylabel("group velocity (m/s)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return _fig_png(fig)
+
+
+def _laminate(rd: RunData):
+    """The laminate of the run's specimen, or None."""
+    try:
+        from .specimen import specimen_from_dict
+        return specimen_from_dict(tomllib.loads(rd.specimen_toml), "run file").laminate
+    except Exception:  # noqa: BLE001 - the figure just lacks the model curve
+        return None
 
 
 def fig_gap(gap: dict) -> str | None:
@@ -284,6 +317,17 @@ def _fmt(v: float) -> str:
     if a >= 1e6:
         return f"{v / 1e9:.4g} GPa" if a >= 1e8 else f"{v:.4g}"
     return f"{v:.4g}"
+
+
+def _param(name: str, v: float) -> str:
+    """A constant in its usual unit: GPa for moduli, kg/m^3 for density, bare for ratios."""
+    if v is None or not math.isfinite(v):
+        return "—"
+    if name.startswith("nu"):
+        return f"{v:.4g}"
+    if name == "density":
+        return f"{v:.4g} kg/m³"
+    return f"{v / 1e9:.4g} GPa"
 
 
 def _table(rows: list[list[str]], head: list[str]) -> str:
@@ -366,8 +410,8 @@ def section_constants(rd: RunData) -> str:
     for n, p in params.items():
         v, s = float(p.get("value", np.nan)), float(p.get("std", np.nan))
         nom = nominal.get(n)
-        rows.append([html.escape(n), _fmt(v), _fmt(s), f"{100 * s / abs(v):.2g} %" if v else "—",
-                     _fmt(float(nom)) if isinstance(nom, (int, float)) else "—"])
+        rows.append([html.escape(n), _param(n, v), _param(n, s), f"{100 * s / abs(v):.2g} %" if v else "—",
+                     _param(n, float(nom)) if isinstance(nom, (int, float)) else "—"])
     res = ident.get("residual") or {}
     conv = ident.get("converged")
     extra = (f"<p>converged: {html.escape(str(bool(conv)))}; residual: "
