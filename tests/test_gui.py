@@ -138,7 +138,10 @@ def test_malformed_run_file_shows_a_message(win, tmp_path):
 
 def test_missing_ni_driver_shows_a_message(win, qtbot, tmp_path):
     set_rig(win, fast_rig_text())
-    win.setup.set_backend("nidaqmx")
+    win.setup.set_backend("nidaqmx")            # checked at once, next to the choice
+    qtbot.waitUntil(lambda: "NI-DAQmx driver" in win.setup.backend_status.text(), timeout=20_000)
+    win.tabs.setCurrentIndex(0)
+    shot(win, "setup_ni_missing")
     run = tmp_path / "ni.h5"
     acquire(qtbot, win, run, 1, 0, timeout=20_000)
     text, error = win.messages[-1]

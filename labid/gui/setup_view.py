@@ -267,6 +267,7 @@ class SetupView(QWidget):
         lay.addWidget(rw, 3)
         self.specimen_box.load_builtin("cfrp")
         self.rig_box.load_builtin("default")
+        self.ni_radio.toggled.connect(lambda on: self.check_backend() if on else self._backend_message("", True))
 
     # -- what the other views need -------------------------------------------
     @property
@@ -295,6 +296,39 @@ class SetupView(QWidget):
             return Effects.parse(text)
         except ValueError as e:
             raise UserError(str(e), key="effects") from None
+
+    # -- backend check ----------------------------------------------------------
+    def _backend_message(self, text: str, ok: bool) -> None:
+        self.backend_status.setText(text)
+        self.backend_status.setStyleSheet(OK_STYLE if ok else ERR_STYLE)
+
+    def check_backend(self) -> None:
+        """Configure the rig's devices on NI-DAQmx (as an acquisition would), off the GUI
+        thread, and say in the panel whether that works (missing driver, absent device...)."""
+        rig, spec = self.rig(), self.specimen()
+        if rig is None or spec is None:
+            self._backend_message("fix the specimen/rig files first", False)
+            return
+        from ..acquisition import AcquisitionSession
+
+        def work(progress, should_stop):
+            session = AcquisitionSession(rig, spec, None, backend="nidaqmx")
+            try:
+                for d in rig.devices:
+                    session.device(d.role)
+            finally:
+                session.close()
+            return [d.name for d in rig.devices]
+
+        def done(names):
+            self._backend_message(f"NI-DAQmx: {', '.join(names)} configured", True)
+
+        def failed(msg):
+            self._backend_message(msg, False)
+            self.main.message(msg, error=True)
+
+        self._backend_message("checking NI-DAQmx…", True)
+        self.main.start_job("NI-DAQmx check", work, done, on_failed=failed, exclusive=False)
 
     # -- serial instruments ---------------------------------------------------
     def refresh_instruments(self) -> None:
