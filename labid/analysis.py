@@ -211,7 +211,9 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
     Wavelet: ``settings.wavelet``, else the paper's for the material; if that
     one resolves fewer than half the frequencies of A0 (two sensors close to
     the source: A0 and S0 overlap within a long wavelet), cmor2-2 then
-    cmor2-1 are tried and the best is kept (said in the notes).
+    cmor2-1 are tried and the best is kept (said in the notes). Each curve
+    is also measured with a centre frequency 1.5 x lower (higher below
+    C = 1); half the difference is added to sigma (systematic wavelet term).
     """
     from engine import safe
     notes = notes if notes is not None else []
@@ -331,6 +333,16 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
                              f"({dict((c.name, n) for c, n in tried)}); used {wl.name}")
         for mode in ("A0", "S0"):
             gv, first_arr = measure(mode, wl, recs)
+            # centre-frequency sweep (docs/wavelet-bias.md): the same records through a
+            # wavelet 1.5 x shorter (longer if that would go below C = 2/3); half the
+            # difference joins sigma as a systematic term
+            c_alt = wl.center / 1.5 if wl.center / 1.5 >= 2 / 3 else wl.center * 1.5
+            alt, _ = measure(mode, waves.Wavelet(wl.bandwidth, c_alt), recs)
+            both = gv.valid & alt.valid
+            if both.any():
+                sys_term = np.where(both, 0.5 * np.abs(gv.velocity_m_s - alt.velocity_m_s), 0.0)
+                gv = waves.GroupVelocity(gv.frequencies_hz, gv.velocity_m_s,
+                                         np.hypot(gv.sigma_m_s, sys_term), gv.valid)
             key = f"{mode}_{direction:g}"
             if gv.valid.sum() < settings.min_wave_points:
                 why: dict[str, int] = {}
