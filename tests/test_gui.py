@@ -427,3 +427,24 @@ def test_overload_light_turns_red(win, qtbot, tmp_path):
     assert error and "gave up" in text
     win.tabs.setCurrentIndex(1)
     shot(win, "acquisition_overload")
+
+
+def test_malformed_specimen_file_is_marked_where_it_breaks(win, tmp_path):
+    bad = tmp_path / "plate.toml"
+    bad.write_text('name = "plate"\n[plate]\nlength = 0.3\nwidth = = 0.2\n')
+    box = win.setup.specimen_box
+    assert box.load_file(str(bad))
+    assert box.validate() is None
+    assert box.editor.error_line == 3 and box.editor.error_label.isVisible()
+    assert str(bad) in box.status.text() and "malformed TOML" in box.status.text()
+    # a file that is not there: one line in the panel, the editor keeps its text
+    before = box.text()
+    assert not box.load_file(str(tmp_path / "missing.toml"))
+    assert "missing.toml" in box.status.text() and box.text() == before
+
+
+def test_cli_gui_command_takes_an_optional_run():
+    from labid.cli import build_parser
+    p = build_parser()
+    assert p.parse_args(["gui"]).run is None
+    assert p.parse_args(["gui", "RUN.h5"]).run == "RUN.h5"
