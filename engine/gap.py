@@ -31,8 +31,8 @@ Gap figures are rms whitened residuals (1 = noise level).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 from scipy import stats
