@@ -421,6 +421,11 @@ def _kmax(cls: _Class, wmax: float, branch: int = 0) -> float:
     target = 2.0 * np.log(wmax)
     x0 = np.log(wmax / np.sqrt(max(np.max(np.diag(cls.A2)), 1e-30)))
     y0 = loglam(np.exp(x0))
+    for _ in range(60):     # low wmax, flexural branch: start above the round-off of lambda
+        if y0 > target - 12.0:
+            break
+        x0 += 1.0
+        y0 = loglam(np.exp(x0))
     x1 = x0 + (target - y0) / 3.0
     y1 = loglam(np.exp(x1))
     n_done = 0

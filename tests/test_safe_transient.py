@@ -241,3 +241,22 @@ def test_cfrp_pencil_lead_strain_has_no_ramp():
             d1, d2 = y[3 * n // 4] - y[n // 2], y[-1] - y[3 * n // 4]
             assert 0.8 < d2 / (c * np.log(n / (0.75 * n))) < 1.2, d2
             assert 0.8 < d1 / (c * np.log(1.5)) < 1.2, d1
+
+
+def test_low_frequency_bands_follow_the_kirchhoff_flexural_law():
+    """Below ~1 kHz (the lowest frequency band of transient_response, or dispersion with a
+    low fmax) A0 along a symmetry axis of the symmetric CFRP follows D11 k^4 = rho h w^2
+    (D11 from laminate theory); it used to come out NaN (wavenumber search started at
+    eigenvalues below their round-off)."""
+    lam = load_specimen("cfrp").laminate
+    f = np.array([3.0, 30.0, 300.0, 999.0])
+    rho_h = sum(p.thickness * p.material.density for p in lam.plies)
+    k_kir = (rho_h * (2 * np.pi * f) ** 2 / abdh(lam).D[0, 0]) ** 0.25
+    k = dispersion(lam, f).mode("A0").wavenumber_rad_m
+    h = sum(p.thickness for p in lam.plies)
+    assert np.all(np.abs(k / k_kir - 1) < 2e-3 + (k * h) ** 2)     # + shear/rotary O((kh)^2)
+    # so the late (low-frequency) record does not depend on where the bands split
+    fs, n = 2e6, 8208
+    y = [transient_response(lam, 0.07, pencil_lead_break(), fs, n, fmax_hz=fm) for fm in (4e5, 9e5)]
+    late = slice(n // 2, None)
+    assert np.max(np.abs(y[0][late] - y[1][late])) < 0.03 * np.max(np.abs(y[1]))
