@@ -286,11 +286,13 @@ def _mode_data(model, wmax: float, labels, strict: bool = True):
 
 
 def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_m, source,
-                        near_field: bool = False):
+                        near_field: bool = False, loss_factor: float = 0.0):
     """Complex transfer per mode (physics convention), per unit force, on grid f (Hz).
 
     near_field: add to A0 its evanescent partner (``_spatial_near``), which cancels the
     spurious 1/r^2 (point) near field of the propagating-only term as k r -> 0.
+    loss_factor: eta of moduli C (1 + i eta): each mode decays as exp(-alpha x),
+    alpha = eta w / (2 |c_g|) (first order in eta: lambda(k) (1 + i eta) = w^2).
     """
     w = TWO_PI * f
     res = {}
@@ -309,16 +311,19 @@ def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length
             D = 2.0 * w[ok] * lerp(dt / (2.0 * np.sqrt(np.maximum(lt, 1e-300))))   # 2 w c_g
             prod = ex["prod"]              # (n+1, 4): uu, uw, wu, ww
             puw, pww = lerp(prod[:, 1]), lerp(prod[:, 3])
+            alpha = loss_factor * w[ok] ** 2 / np.abs(D)          # eta w / (2 |c_g|)
             if quantity == "strain":
                 if sensor_length_m > 0:
                     L = sensor_length_m
-                    sp = (spatial(kk, distance_m + L / 2, source, "u")
-                          - spatial(kk, distance_m - L / 2, source, "u")) / L
+                    x1, x0 = distance_m + L / 2, distance_m - L / 2
+                    sp = (spatial(kk, x1, source, "u") * np.exp(-alpha * x1)
+                          - spatial(kk, x0, source, "u") * np.exp(-alpha * x0)) / L
                 else:
-                    sp = spatial(kk, distance_m, source, "du")
+                    sp = (spatial(kk, distance_m, source, "du")
+                          - alpha * spatial(kk, distance_m, source, "u")) * np.exp(-alpha * distance_m)
                 H[ok] = puw * sp / D
             else:
-                Hw = 1j * pww * spatial(kk, distance_m, source, "w") / D
+                Hw = 1j * pww * spatial(kk, distance_m, source, "w") * np.exp(-alpha * distance_m) / D
                 ww = w[ok]
                 H[ok] = {"displacement": Hw, "velocity": -1j * ww * Hw,
                          "acceleration": -ww * ww * Hw}[quantity]
@@ -376,13 +381,13 @@ def _bands(laminate, direction_deg, fmax, f_floor, modes, order, elements_per_pl
 
 
 def _transfer_bands(bands, f, distance_m, quantity, sensor_length_m, source,
-                    near_field: bool = True) -> np.ndarray:
+                    near_field: bool = True, loss_factor: float = 0.0) -> np.ndarray:
     H = np.zeros(f.shape, complex)
     for f_lo, f_hi, data in bands:
         sel = (f > f_lo) & (f <= f_hi)
         if np.any(sel):
             H[sel] = sum(_transfer_from_data(data, f[sel], distance_m, quantity, sensor_length_m,
-                                             source, near_field).values(),
+                                             source, near_field, loss_factor).values(),
                          np.zeros(int(sel.sum()), complex))
     return H
 
@@ -390,35 +395,42 @@ def _transfer_bands(bands, f, distance_m, quantity, sensor_length_m, source,
 def mode_transfer(laminate: Laminate, distance_m: float, frequency_hz, *, direction_deg: float = 0.0,
                   quantity: str = "displacement", sensor_length_m: float = 0.0, source: str = "point",
                   modes=None, order: int | None = None, elements_per_ply: int | None = None,
-                  near_field: bool = False) -> dict:
+                  near_field: bool = False, loss_factor: float = 0.0) -> dict:
     """Per-mode frequency response (per newton of force) at the sensor.
 
     Physics convention exp(i(k x - w t)); zero where a mode does not exist.
     Returns {label: complex array over frequency_hz}. Propagating modes only unless
     ``near_field``: then 'A0' also carries its evanescent partner (see the module
     docstring), needed wherever k r is not large (low frequencies, near the source).
+    ``loss_factor`` eta: moduli C (1 + i eta), each mode attenuated by
+    exp(-eta w x / (2 |c_g|)) (first order in eta; A0's near field too).
     """
     _check_common(distance_m, quantity, sensor_length_m, source)
     f = np.atleast_1d(np.asarray(frequency_hz, float))
     model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
                        fmax_hz=float(f.max()))
     data = _mode_data(model, TWO_PI * float(f.max()), modes)
-    return _transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source, near_field)
+    return _transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source, near_field,
+                               float(loss_factor))
 
 
 def transient_response(laminate: Laminate, distance_m: float, force: ForceHistory, fs_hz: float,
                        n_samples: int, *, direction_deg: float = 0.0, quantity: str = "strain",
                        sensor_length_m: float = 0.0, source: str = "point",
                        fmax_hz: float | None = None, modes=None, order: int | None = None,
-                       elements_per_ply: int | None = None) -> np.ndarray:
+                       elements_per_ply: int | None = None, loss_factor: float = 0.0) -> np.ndarray:
     """Sensor record (n_samples at fs_hz, t = 0 at force onset) for a surface normal force.
 
     quantity: 'displacement' (w, m), 'velocity' (m/s), 'acceleration' (m/s^2) or
     'strain' (surface strain along the path averaged over sensor_length_m).
-    ``modes`` restricts the sum to some labels (e.g. ("A0",)). See the module
-    docstring for conventions, padding and the point-source model.
+    ``modes`` restricts the sum to some labels (e.g. ("A0",)). ``loss_factor`` eta:
+    viscoelastic moduli C (1 + i eta), mode m attenuated by exp(-eta w d / (2 |c_g,m|)).
+    No sensor high-pass: apply the sensor chain's filter to the record. See the module
+    docstring for conventions, near field, DC handling, padding and the point-source model.
     """
     _check_common(distance_m, quantity, sensor_length_m, source)
+    if not (np.isfinite(loss_factor) and 0.0 <= loss_factor < 1.0):
+        raise SafeError(f"loss factor {loss_factor!r}: expected 0 <= eta < 1")
     if not (fs_hz > 0 and int(n_samples) >= 1):
         raise SafeError(f"fs={fs_hz!r} Hz, n_samples={n_samples!r}: expected positive values")
     if not isinstance(force, ForceHistory):
@@ -461,7 +473,7 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     band = (f > 0) & (f <= fmax)
     fb = f[band]
     taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
-    args = (distance_m, quantity, sensor_length_m, source)
+    args = (distance_m, quantity, sensor_length_m, source, True, float(loss_factor))
     H = _transfer_bands(bands, fb, *args)
     R = np.conj(H) * force.derivative_spectrum(fb) * taper     # spectrum of r (see below)
     # the lowest bins: R may be singular at 0 (~ln f), so the bin average of R (4-point
@@ -471,7 +483,7 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     if nl and fb[0] < fmax:
         xg, wg = np.polynomial.legendre.leggauss(4)
         fq = (fb[:nl, None] + 0.5 * df * xg[None, :]).ravel()
-        Rq = (np.conj(_transfer_bands(bands, fq, distance_m, quantity, sensor_length_m, source))
+        Rq = (np.conj(_transfer_bands(bands, fq, *args))
               * force.derivative_spectrum(fq)).reshape(nl, 4)
         R[:nl] = 0.5 * Rq @ wg * taper[:nl]
     Y = np.zeros(f.shape, complex)

@@ -260,3 +260,19 @@ def test_low_frequency_bands_follow_the_kirchhoff_flexural_law():
     y = [transient_response(lam, 0.07, pencil_lead_break(), fs, n, fmax_hz=fm) for fm in (4e5, 9e5)]
     late = slice(n // 2, None)
     assert np.max(np.abs(y[0][late] - y[1][late])) < 0.03 * np.max(np.abs(y[1]))
+
+
+def test_loss_factor_attenuation_matches_the_complex_modulus_plate():
+    """Moduli E (1 + i eta): Kirchhoff A0 has k = (rho h w^2 / D (1 + i eta))^(1/4) and S0
+    k = w sqrt(rho (1 - nu^2) / E (1 + i eta)); the amplitude ratio over x is exp(-|Im k| x)
+    (eta k / 4 and eta k / 2: the attenuation follows the group, not the phase, velocity)."""
+    eta, x = 0.02, 0.3
+    f = np.array([2e3, 5e3])
+    w = 2 * np.pi * f
+    for mode, k in (("A0", (2700.0 * H * w ** 2 / (D_PLATE * (1 + 1j * eta))) ** 0.25),
+                    ("S0", w * np.sqrt(2700.0 * (1 - 0.33 ** 2) / (70e9 * (1 + 1j * eta))))):
+        h = [mode_transfer(AL_PLATE, x, f, quantity="strain", source="line", modes=(mode,),
+                           loss_factor=e)[mode] for e in (0.0, eta)]
+        np.testing.assert_allclose(np.abs(h[1] / h[0]), np.exp(-np.abs(k.imag) * x), rtol=3e-3)
+    with pytest.raises(SafeError):
+        transient_response(AL_PLATE, 0.2, hammer_force(1e-4), 1e6, 100, loss_factor=-0.1)
