@@ -402,6 +402,9 @@ def test_abort_keeps_every_recorded_hit(win, qtbot, tmp_path):
     acq.waves_spin.setValue(0)
     qtbot.mouseClick(acq.start_btn, Qt.LeftButton)
     qtbot.waitUntil(lambda: acq.done["hammer"] >= 2, timeout=60_000)
+    with RunStore(run, "r") as st:      # accepted hits are in the file while the session runs
+        assert st.n_shots("hammer") >= 2
+    assert win.job is not None
     qtbot.mouseClick(acq.abort_btn, Qt.LeftButton)
     qtbot.waitUntil(lambda: win.job is None, timeout=60_000)
     summary = acq.last_summary
