@@ -356,6 +356,10 @@ def test_whole_session_on_the_simulated_rig(qtbot, tmp_path):
     from labid.report import write_report
     html = Path(write_report(run, tmp_path / "r.html")).read_text()
     assert html.count("data:image/png;base64,") >= 2 and "sensor_mass" in html
+    job = win2.write_report(str(tmp_path / "panel.html"))      # File > Write report
+    assert job is not None
+    qtbot.waitUntil(lambda: win2.job is None, timeout=30_000)
+    assert (tmp_path / "panel.html").read_text().count("data:image/png;base64,") >= 2
     dispose(win2)
 
 

@@ -20,6 +20,8 @@ from .analysis_link import ANALYSIS_API, analysis_job, analysis_summary, save_pi
 from .worker import Job
 
 TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap")
+#: exclusive jobs after which the session state is saved in the run file
+AUTOSAVE_AFTER = ("acquisition", "analysis", "identification", "diagnosis")
 
 
 class MainWindow(QMainWindow):
@@ -124,6 +126,8 @@ class MainWindow(QMainWindow):
                 self.cancel_btn.setVisible(False)
             self._side_jobs.discard(job)
             job.release()
+            if exclusive and name in AUTOSAVE_AFTER:
+                self.save_session(quiet=True)
 
         job.ended.connect(ended)
         if exclusive:
@@ -294,8 +298,11 @@ class MainWindow(QMainWindow):
                 st[key] = view.state()
         return st
 
-    def save_session(self) -> bool:
-        """Store the session state in the run file (``/results/gui``)."""
+    def save_session(self, quiet: bool = False) -> bool:
+        """Store the session state in the run file (``/results/gui``). ``quiet``: an
+        automatic save (after a job, on closing): only a failure is reported."""
+        if quiet and (not self.run_path or not Path(self.run_path).exists() or self.busy()):
+            return False
         if not self.run_path:
             self.message("no run file to save the session in; choose one on the Acquisition tab", error=True)
             return False
@@ -312,7 +319,8 @@ class MainWindow(QMainWindow):
         except OSError as e:
             self.message(f"{self.run_path}: cannot write the session ({e})", error=True)
             return False
-        self.message(f"session saved in {self.run_path}")
+        if not quiet:
+            self.message(f"session saved in {self.run_path}")
         return True
 
     # -- dialogs --------------------------------------------------------------------------------
@@ -340,6 +348,11 @@ class MainWindow(QMainWindow):
         return self.start_job("report", work, lambda path: self.message(f"report written: {path}"))
 
     def closeEvent(self, e) -> None:  # noqa: N802
+        if self.job is not None:          # stop the running job (an acquisition keeps its shots)
+            self.job.cancel()
+            self.job.wait(15000)
+            self.job = None
+        self.save_session(quiet=True)
         for job in list(self._side_jobs):
             job.cancel()
         for job in list(self._side_jobs):
