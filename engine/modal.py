@@ -490,9 +490,14 @@ def pick_peaks(spec: Spectra, *, fmin: float | None = None, fmax: float | None =
             fj = (j + lo) * spec.df
             hwj = max(_halfwidth_bins(ir, j), zeta_typ * fj / spec.df)
             near = any(abs(p.frequency_hz - fj) < max(2 * spec.df, 0.5 * p.damping_ratio * p.frequency_hz)
-                       for p, _ in good) or any(abs(c - fj) < 2 * spec.df for c in cand)
+                       for p, _ in good) or any(abs(c - fj) < 2 * spec.df for c, sn in zip(cand, snaps) if not sn)
             if not near:
-                new.append(((j + _parabolic(dbr, j)) * spec.df + lo * spec.df, hwj))
+                fnew = (j + _parabolic(dbr, j)) * spec.df + lo * spec.df
+                if any(abs(c - fnew) < 2 * spec.df for c in cand):
+                    # a candidate here did not fit as one mode: start a second pole half a
+                    # half-width below, so that the pair can split
+                    fnew -= 0.5 * hwj * spec.df
+                new.append((fnew, hwj))
         if not new:
             break
         cand += [c for c, _ in new]

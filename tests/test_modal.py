@@ -187,6 +187,9 @@ def _nodal_point(model, modes, mode, y):
     return 0.5 * (a + b)
 
 
+NOISE_REL = 2e-3  # modes from ~10 to ~50 dB SNR
+
+
 @functools.lru_cache(maxsize=1)
 def _cfrp_hammer_test():
     """Simulated hammer test of the CFRP plate (modes from engine.plate_fe), 4
@@ -220,7 +223,7 @@ def _cfrp_hammer_test():
         if k == 0:
             per_mode = np.fft.irfft(Xm, pad * n)[..., :n]
     hits = np.array(hits)
-    noise = 2e-4 * np.abs(hits).max()
+    noise = NOISE_REL * np.abs(hits).max()
     hits += noise * rng.normal(size=hits.shape)
     # SNR of each mode: its own spectral peak over the noise level, best channel
     snr = 10 * np.log10((np.abs(np.fft.rfft(per_mode, axis=-1)) ** 2).max(axis=-1) / (noise ** 2 * n)).max(axis=1)
@@ -245,14 +248,15 @@ def test_acceptance_cfrp_plate_hammer_test(with_force):
     # mode 3, invisible at sensor 4, is found through the others, with its zero there
     p3 = min(peaks, key=lambda q: abs(q.frequency_hz - fn[2]))
     assert abs(p3.shape[3]) < 0.01
-    assert len(peaks) <= must.sum() + 2  # nothing much beyond the real modes
+    # nothing spurious: every peak is one of the plate's modes (weaker ones may be found too)
+    assert all(np.min(np.abs(fn / p.frequency_hz - 1)) < 0.01 for p in peaks)
 
 
 @pytest.mark.slow
 def test_outside_check_against_sdypy_ema_lscf():
     """Independent estimator (sdypy-EMA's LSCF) on the same H1 FRF: the two
     agree on the frequencies to a median 0.02 % and on the damping to a median
-    5 %; against the model, ours is at least as close as LSCF (recorded in
+    5 %; against the model, ours is at least as close as LSCF (figures in
     bench/RESULTS.md)."""
     EMA = pytest.importorskip("sdypy.EMA")
     fn, zeta, snr, hits, forces, pre = _cfrp_hammer_test()
