@@ -44,19 +44,23 @@ strain of an infinite plate under a point step grows like
 (F h / 16 pi D) ln t, a line step like sqrt(t); a free infinite plate has no
 static state). The DFT of R / (i w) gives the antiderivative except for the
 DC bin of r, which is restored as the mean of Re R over the DC bin's half
-width (quadrature in ln f, asymptote below 3 % of it); the lowest N_LOW_BINS bins use Gauss-Legendre
-bin averages of R instead of midpoint values (R is singular at 0). The one
+width (quadrature in ln f, asymptote below 3 % of it); the lowest
+N_LOW_BINS bins use Gauss-Legendre bin averages of R instead of midpoint values (R is singular at 0). The one
 remaining constant of integration makes the record vanish before the first
 possible arrival (t < 0.9 (d - L/2) / c_max, c_max = 1.2 x the fastest bulk
 wave speed); nothing is extrapolated. Exception: displacement, whose R ~ 1/f
 (point) is not integrable (a net force makes an infinite plate drift,
 w ~ t): the DC-drop line a + b t is fitted before the first arrival and
-removed. The FFT period is at least PERIOD_RECORDS (8) records, so the
-wrap-around of ~1/t tails leaves <~ (pi^2 / 12)(t / T)^2 ~ 1.3 % of
-F h / (16 pi D) at the end of the record (the pencil-lead strain follows the
-closed-form Kirchhoff step response to 2 % of its peak, tested), and is
-extended until the slowest included component (smallest group velocity over
-the used band, usually A0 at the lowest bin) has crossed d before the period
+removed. Two FFT grids, split by a complementary cos^2 crossover over
+[8, 16] / t_rec (t_rec = record length): the low part, which holds the
+singular DC behaviour and the slow ~1/t tails, uses a period of at least
+PERIOD_RECORDS (32) records (few bins), so its wrap-around leaves
+~ (pi^2 / 12)(t / T)^2 ~ 0.1 % of F h / (16 pi D) at the end of the record
+(the pencil-lead strain follows the closed-form Kirchhoff step response to
+0.2-0.7 % of its peak from 0.5 ms on, tested at 1 %); the high part uses the short period in
+which its slowest component (A0 at the crossover) has passed. Each period
+is extended until the slowest included component (smallest group velocity
+over its band, usually A0 at its lowest bin) has crossed d before the period
 ends; t = 0 is the force onset. The spectrum is tapered by a half cosine
 over the top 10 % of the band below ``fmax_hz`` (default: the Nyquist
 frequency or the force bandwidth, whichever is lower). No sensor high-pass
@@ -354,7 +358,7 @@ def _dc_bin_mean(R, half_width: float, log_tail: bool, n: int = 24, decades: flo
 
 BAND_RATIO = 400.0
 N_LOW_BINS = 32       # bins integrated by Gauss-Legendre (singular spectra at f -> 0)
-PERIOD_RECORDS = 8.0  # FFT period >= 8 records: wrap-around of ~1/t tails <~ (1/8)^2
+PERIOD_RECORDS = 32.0  # low-part FFT period, records: wrap-around of ~1/t tails ~ (pi^2/12)(1/32)^2
 N_CHEB_MAX = 256      # Chebyshev nodes for lambda (eigenvalues only)
 N_VEC = 64            # nodes for the eigenvector (surface amplitude) series
 
@@ -458,45 +462,80 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
             cg = (dt[i] + t * (dt[i + 1] - dt[i])) / (2 * TWO_PI * fl[sel])
             cg_low[sel] = np.minimum(cg_low[sel], np.where(np.isfinite(k) & (cg > 0), cg, np.inf))
     cg_low = np.minimum.accumulate(cg_low[::-1])[::-1]       # slowest at or above f
-    T = max(PERIOD_RECORDS * t_rec, t_rec + force.duration_s)
-    for _ in range(50):
-        cmin = float(np.interp(np.log(1.0 / T), np.log(fl), cg_low))
-        if not np.isfinite(cmin):
-            break
-        need = min(t_rec + force.duration_s + (distance_m + sensor_length_m) / cmin * 1.05, T_max)
-        if need <= T * (1 + 1e-3):
-            break
-        T = need
+    args = (distance_m, quantity, sensor_length_m, source, True, float(loss_factor))
+    G = force.derivative_spectrum
+    reach = distance_m + sensor_length_m
+
+    def period(T, f_slow=None):
+        """Smallest period >= T in which the slowest component at or above f_slow
+        (default: the lowest bin, 1/T) crosses the sensor before the period ends."""
+        for _ in range(50):
+            cmin = float(np.interp(np.log(f_slow or 1.0 / T), np.log(fl), cg_low))
+            if not np.isfinite(cmin):
+                break
+            need = min(t_rec + force.duration_s + reach / cmin * 1.05, T_max)
+            if need <= T * (1 + 1e-3):
+                break
+            T = need
+        return T
+
+    # Two grids. Low part (f < f2, everything singular at f = 0, slow ~1/t tails): a long
+    # period (>= PERIOD_RECORDS records), few bins. High part (f > f1): the short period
+    # of the old synthesis, in which its slowest component (A0 at f1) has passed. The
+    # complementary cos^2 crossover over [f1, f2] = [8, 16] / t_rec sums to 1.
+    f1, f2 = 8.0 / t_rec, 16.0 / t_rec
+    if f2 > 0.5 * fmax:
+        f1 = f2 = np.inf                                      # one (long) grid
+
+    def spectrum(fb):
+        taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
+        cross = np.clip((fb - f1) / (f2 - f1), 0.0, 1.0) if np.isfinite(f1) else np.zeros(fb.shape)
+        low = 0.5 * (1.0 + np.cos(np.pi * cross))            # 1 below f1, 0 above f2
+        return taper, low
+
+    # -- low part: y = int_0^t r, r = response to dF/dt (spectrum R = H G: finite for
+    # steps, and integrable at DC for v, a and strain)
+    T = period(max(PERIOD_RECORDS * t_rec, t_rec + force.duration_s))
     n_fft = next_fast_len(int(np.ceil(T * fs_hz)), real=True)
+    n_out = n_fft
     df = fs_hz / n_fft
     f = np.arange(n_fft // 2 + 1) * df
-    band = (f > 0) & (f <= fmax)
+    band = (f > 0) & (f <= min(fmax, f2))
     fb = f[band]
-    taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
-    args = (distance_m, quantity, sensor_length_m, source, True, float(loss_factor))
-    H = _transfer_bands(bands, fb, *args)
-    R = np.conj(H) * force.derivative_spectrum(fb) * taper     # spectrum of r (see below)
+    taper, low = spectrum(fb)
+    R = np.conj(_transfer_bands(bands, fb, *args)) * G(fb) * taper * low
     # the lowest bins: R may be singular at 0 (~ln f), so the bin average of R (4-point
     # Gauss-Legendre) replaces its midpoint value (the kernel exp(iwt)/(iw) - 1/(iw) of
     # y = int_0^t r is smooth over a bin)
     nl = min(N_LOW_BINS, fb.size)
-    if nl and fb[0] < fmax:
+    if nl:
         xg, wg = np.polynomial.legendre.leggauss(4)
         fq = (fb[:nl, None] + 0.5 * df * xg[None, :]).ravel()
-        Rq = (np.conj(_transfer_bands(bands, fq, *args))
-              * force.derivative_spectrum(fq)).reshape(nl, 4)
-        R[:nl] = 0.5 * Rq @ wg * taper[:nl]
+        Rq = (np.conj(_transfer_bands(bands, fq, *args)) * G(fq)).reshape(nl, 4)
+        R[:nl] = 0.5 * Rq @ wg * taper[:nl] * low[:nl]
     Y = np.zeros(f.shape, complex)
     Y[band] = R / (1j * TWO_PI * fb)
     y = irfft(Y, n=n_fft) * fs_hz
     tt = np.arange(n_fft) / fs_hz
     if quantity != "displacement":
-        # y = int_0^t r, r = response to dF/dt (spectrum R = H G, integrable at DC for
-        # v, a and strain). The DFT drops r's DC bin; restore it as the mean of Re R over
-        # the bin's half-width [0, df/2] (quadrature in ln f: R may be ~ln f or f^-1/2)
-        R0 = _dc_bin_mean(lambda fq: np.conj(_transfer_bands(bands, fq, *args))
-                          * force.derivative_spectrum(fq), df / 2.0, log_tail=source == "point")
+        # the DFT drops r's DC bin; restore it as the mean of Re R over the bin's
+        # half-width [0, df/2] (quadrature in ln f: R may be ~ln f or f^-1/2)
+        R0 = _dc_bin_mean(lambda fq: np.conj(_transfer_bands(bands, fq, *args)) * G(fq),
+                          df / 2.0, log_tail=source == "point")
         y = y + df * R0 * tt
+    # -- high part (zero near DC: its antiderivative decays after the waves have passed)
+    if np.isfinite(f1):
+        Th = period(max(2.0 * t_rec, t_rec + force.duration_s + 2.0 / (f2 - f1)), f1)
+        nh = next_fast_len(int(np.ceil(Th * fs_hz)), real=True)
+        fh = np.arange(nh // 2 + 1) * fs_hz / nh
+        bh = (fh > f1) & (fh <= fmax)
+        taper, low = spectrum(fh[bh])
+        Yh = np.zeros(fh.shape, complex)
+        Yh[bh] = (np.conj(_transfer_bands(bands, fh[bh], *args)) * G(fh[bh]) * taper * (1.0 - low)
+                  / (1j * TWO_PI * fh[bh]))
+        n_out = min(n_fft, nh)
+        y = y[:n_out] + (irfft(Yh, n=nh) * fs_hz)[:n_out]
+        tt = tt[:n_out]
     # t = 0 is the force onset: the one remaining unknown, the constant of
     # integration, makes the record vanish before the first possible arrival
     # (bound: 1.2 x the fastest bulk plane-wave speed, mode independent, so responses of

@@ -200,7 +200,7 @@ def test_pencil_lead_strain_late_record_follows_kirchhoff(r):
     t = np.arange(n) / fs
     late = t >= 5e-4
     ref = _kirchhoff_step_strain(t[late], r)
-    assert np.max(np.abs(y[late] - ref)) < 0.03 * np.max(np.abs(y)), np.max(np.abs(y[late] - ref))
+    assert np.max(np.abs(y[late] - ref)) < 0.01 * np.max(np.abs(y)), np.max(np.abs(y[late] - ref))
 
 
 def test_hammer_strain_tail_is_the_kirchhoff_impulse_response():
@@ -224,8 +224,9 @@ def test_tone_burst_record_returns_to_zero():
 
 
 def test_cfrp_pencil_lead_strain_has_no_ramp():
-    """The reported case (specimen 'cfrp', 2 MHz, 8208 samples): the last quarter of the record
-    stays within the dynamic peak (was a ramp to ~5x the peak at 0.07 m); at 0.07 m it is in the quasi-static regime and grows like ln t with the
+    """The reported case (specimen 'cfrp', 2 MHz, 8208 samples): the last quarter of the
+    record sets no new maximum and has no trend (it was a linear ramp, 5.7e-6 at the end for
+    a 1.2e-6 wave peak at 0.07 m); at 0.07 m it is quasi-static and grows like ln t with the
     Kirchhoff slope h / (16 pi D11) per e-fold (D11 from laminate theory, +-20 %: the point
     response of an anisotropic plate is not the isotropic one), not linearly."""
     lam = load_specimen("cfrp").laminate
