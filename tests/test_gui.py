@@ -5,7 +5,6 @@ Screenshots of every view go to tests/artifacts/ (gitignored) at 1366x768.
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np

@@ -8,7 +8,6 @@ model evaluation and stops at the next one when cancelled.
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import replace
 

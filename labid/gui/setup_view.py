@@ -12,7 +12,7 @@ from PySide6.QtWidgets import (QButtonGroup, QComboBox, QFileDialog, QFormLayout
                                QRadioButton, QSpinBox, QVBoxLayout, QWidget)
 
 from ..errors import UserError
-from ..rig import Rig, read_rig_text, rig_from_text
+from ..rig import Rig, rig_from_text
 from ..specimen import BUILTIN as SPECIMENS, Specimen, specimen_from_dict
 from .tomledit import TomlEditor
 
