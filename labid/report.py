@@ -417,7 +417,27 @@ def section_constants(rd: RunData) -> str:
     extra = (f"<p>converged: {html.escape(str(bool(conv)))}; residual: "
              + ", ".join(f"{html.escape(k)} = {_fmt(_scalar(v)) if _scalar(v) is not None else '—'}"
                          for k, v in res.items()) + "</p>")
-    return _table(rows, ["parameter", "value", "std", "rel. std", "nominal (specimen file)"]) + extra
+    out = _table(rows, ["parameter", "value", "std", "rel. std", "nominal (specimen file)"]) + extra
+    # other data sets identified separately (identification_<data>): one column each
+    others = {k[len("identification_"):]: v for k, v in sorted(rd.results.items())
+              if k.startswith("identification_") and isinstance(v, dict) and isinstance(v.get("parameters"), dict)}
+    if others:
+        sets = {"combined" if not ident.get("data") else str(ident.get("data")): params}
+        sets.update({k: v["parameters"] for k, v in others.items()})
+        names = list(dict.fromkeys(n for ps in sets.values() for n in ps))
+        cells = []
+        for n in names:
+            row = [html.escape(n)]
+            for ps in sets.values():
+                p = ps.get(n)
+                row.append("—" if not isinstance(p, dict) else
+                           f"{_param(n, float(p.get('value', np.nan)))} ± "
+                           f"{_param(n, float(p.get('std', np.nan)))}")
+            nom = nominal.get(n)
+            row.append(_param(n, float(nom)) if isinstance(nom, (int, float)) else "—")
+            cells.append(row)
+        out += "<p>By data set:</p>" + _table(cells, ["parameter"] + [f"{k} data" for k in sets] + ["nominal"])
+    return out
 
 
 def section_gap(rd: RunData) -> str:

@@ -104,3 +104,15 @@ def test_cli_report(run_file, tmp_path):
 
 def test_default_output_next_to_the_run(run_file):
     assert write_report(run_file) == str(run_file.with_suffix(".html"))
+
+
+def test_constants_of_each_data_set_side_by_side(run_file):
+    with RunStore(run_file, "a") as st:
+        for name, e1 in (("identification", 1.30e11), ("identification_modal", 1.31e11),
+                         ("identification_waves", 1.25e11)):
+            st.write_group(name, {"json": json.dumps({"parameters": {"E1": {"value": e1, "std": 1e9}},
+                                                      "converged": True})})
+    html = build_report(run_file)
+    assert "By data set:" in html
+    for text in ("130 GPa ± 1 GPa", "131 GPa ± 1 GPa", "125 GPa ± 1 GPa", "modal data", "waves data"):
+        assert text in html
