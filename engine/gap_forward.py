@@ -120,6 +120,12 @@ class RigLayout:
     temperature_c: float | None = None
     wavelet_bandwidth: float = 2.0
     wavelet_center: float = 5.0
+    accelerometer_masses: tuple[float, ...] = ()   # kg, declared (part of the nominal model)
+
+    def masses(self, extra: float = 0.0) -> list[tuple[float, float, float]]:
+        """(x, y, m) point masses: declared accelerometer masses plus ``extra`` kg each."""
+        m0 = self.accelerometer_masses or (0.0,) * len(self.accelerometers)
+        return [(x, y, m + extra) for (x, y), m in zip(self.accelerometers, m0) if m + extra != 0.0]
 
 
 @dataclass(frozen=True)
@@ -226,11 +232,12 @@ class ForwardModel:
             model = self.base
             if thickness:
                 model = PlateModel(p.laminate.scaled_thickness(1.0 + thickness), self.base.mesh,
-                                   self.base.shear_factor)
-            if mass:
-                if not p.rig.accelerometers:
-                    raise GapError("sensor_mass needs rig.accelerometers")
-                model = model.with_point_masses([(x, y, mass) for x, y in p.rig.accelerometers])
+                                   self.base.shear_factor, k_add=self.base._k_add)
+            if mass and not p.rig.accelerometers:
+                raise GapError("sensor_mass needs rig.accelerometers")
+            masses = p.rig.masses(mass)
+            if masses:
+                model = model.with_point_masses(masses)
             if spring:
                 if not p.rig.supports:
                     raise GapError("support_stiffness needs rig.supports")

@@ -108,7 +108,8 @@ def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<fea
         float(rig.get("sensor_length_m") or 0.0),
         rig.get("temperature_c"),
         _num(wl_, "bandwidth", "rig.wavelet.", src, 2.0),
-        _num(wl_, "center", "rig.wavelet.", src, 5.0))
+        _num(wl_, "center", "rig.wavelet.", src, 5.0),
+        tuple(float(a.get("mass_kg") or 0.0) for a in rig.get("accelerometers") or []))
     if modal is None and not waves:
         raise UserError("no modal frequencies and no wave velocities: nothing to diagnose", file=src,
                         key="modal")

@@ -37,7 +37,7 @@ KINDS = ("clean",) + LIBRARY + OUT_OF_LIBRARY
 
 #: physically typical magnitudes: (low, high, signed) in the effect's unit
 RANGES = {
-    "sensor_mass": (0.001, 0.006, False),        # kg, IEPE accelerometers 1-6 g
+    "sensor_mass": (0.001, 0.006, False),        # kg beyond the declared 2 g (cables, wax, heavier unit)
     "support_stiffness": (100.0, 1000.0, False),  # N/m, wire/rubber suspension
     "temperature": (5.0, 15.0, True),            # K away from the constants' temperature
     "thickness": (0.01, 0.04, True),             # relative, 1-4 % nominal vs real
@@ -50,6 +50,7 @@ RANGES = {
 }
 
 ACCELEROMETERS = ((0.02, 0.02), (0.31, 0.02), (0.02, 0.31), (0.31, 0.31))
+ACCEL_MASS_KG = 0.002      # declared mass of each accelerometer (in the nominal model too)
 SUPPORTS = ((0.03, 0.33), (0.30, 0.33))
 WAVE_PATH_M = 0.25
 SENSOR_LENGTH_M = 0.005
@@ -136,7 +137,8 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     if kind != "clean":
         lo, hi, signed = RANGES[kind]
         mag = float(rng.uniform(lo, hi)) * (float(rng.choice([-1.0, 1.0])) if signed else 1.0)
-    rig = RigLayout(ACCELEROMETERS, SUPPORTS, WAVE_PATH_M, SENSOR_LENGTH_M, 23.0)
+    rig = RigLayout(ACCELEROMETERS, SUPPORTS, WAVE_PATH_M, SENSOR_LENGTH_M, 23.0,
+                    accelerometer_masses=(ACCEL_MASS_KG,) * len(ACCELEROMETERS))
     waves = tuple(WaveData(m, d, np.geomspace(*F_WAVES, n), np.ones(n), np.ones(n))
                   for m, d, n in wave_sets)
     true_lam = lam
@@ -177,7 +179,7 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
                   "mode_shapes": {"points": pts.tolist(), "values": shapes.tolist()}},
         "waves": [],
         "rig": {"temperature_c": 23.0,
-                "accelerometers": [{"x": x, "y": y_, "mass_kg": 0.002} for x, y_ in ACCELEROMETERS],
+                "accelerometers": [{"x": x, "y": y_, "mass_kg": ACCEL_MASS_KG} for x, y_ in ACCELEROMETERS],
                 "supports": [{"x": x, "y": y_} for x, y_ in SUPPORTS],
                 "wave_path_m": WAVE_PATH_M, "sensor_length_m": SENSOR_LENGTH_M},
     }
