@@ -152,19 +152,23 @@ def test_missing_ni_driver_shows_a_message(win, qtbot, tmp_path):
 
 
 def test_serial_probe_temperature_then_unplugged(win, qtbot):
-    from mock_hw.serial_sim import PtyServer, SimEnvProbe
+    from mock_hw.serial_sim import PtyServer, SimEnvProbe, SimHammer
     probe = SimEnvProbe(temperature_c=21.37, humidity_pct=40.0)
     server = PtyServer(probe)
+    hammer = PtyServer(SimHammer(level_pct=60))
     try:
         win.setup.env_port.setText(server.port)
+        win.setup.hammer_port.setText(hammer.port)
         qtbot.mouseClick(win.setup.connect_btn, Qt.LeftButton)
         qtbot.waitUntil(lambda: win.setup.temperature_c is not None, timeout=10_000)
         assert win.setup.temperature_c == pytest.approx(21.37)
         assert "21.37" in win.setup.temperature_label.text()
+        assert "HAMMER" in win.setup.hammer_status.text() and "level 60 %" in win.setup.hammer_status.text()
         win.tabs.setCurrentIndex(0)
         shot(win, "setup_serial")
     finally:
         server.close()          # unplugged
+        hammer.close()
     n = len(win.messages)
     win.setup.refresh_instruments()
     qtbot.waitUntil(lambda: len(win.messages) > n, timeout=10_000)
@@ -454,3 +458,16 @@ def test_cli_gui_command_takes_an_optional_run():
     p = build_parser()
     assert p.parse_args(["gui"]).run is None
     assert p.parse_args(["gui", "RUN.h5"]).run == "RUN.h5"
+
+
+def test_specimen_edit_save_and_reload(win, tmp_path):
+    box = win.setup.specimen_box
+    text = box.text().replace("E2 = 9.0e9", "E2 = 9.5e9")
+    box.editor.setPlainText(text)
+    target = tmp_path / "edited.toml"
+    assert box.save(str(target))
+    assert target.read_text() == text and not box.modified()
+    box.load_builtin("aluminium")
+    assert box.load_file(str(target)) and box.text() == text
+    spec = box.validate()
+    assert spec is not None and spec.laminate.plies[0].material.E2 == 9.5e9
