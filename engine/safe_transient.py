@@ -45,13 +45,15 @@ strain of an infinite plate under a point step grows like
 static state). The DFT of R / (i w) gives the antiderivative except for the
 DC bin of r, which is restored as the mean of Re R over the DC bin's half
 width (quadrature in ln f, asymptote below 3 % of it); the lowest
-N_LOW_BINS bins use Gauss-Legendre bin averages of R instead of midpoint values (R is singular at 0). The one
+N_LOW_BINS bins use Gauss-Legendre bin averages of R instead of midpoint
+values (R is singular at 0). The one
 remaining constant of integration makes the record vanish before the first
 possible arrival (t < 0.9 (d - L/2) / c_max, c_max = 1.2 x the fastest bulk
-wave speed); nothing is extrapolated. Exception: displacement, whose R ~ 1/f
-(point) is not integrable (a net force makes an infinite plate drift,
-w ~ t): the DC-drop line a + b t is fitted before the first arrival and
-removed. Two FFT grids, split by a complementary cos^2 crossover over
+wave speed); nothing is extrapolated. Displacement (its R ~ 1/f for a
+point source is not integrable: a net force makes an infinite plate drift,
+w ~ t) is the time integral of v: a second antiderivative of the same
+spectra plus R0 t^2 / 2 and the constant of v times t, and its own constant.
+Two FFT grids, split by a complementary cos^2 crossover over
 [8, 16] / t_rec (t_rec = record length): the low part, which holds the
 singular DC behaviour and the slow ~1/t tails, uses a period of at least
 PERIOD_RECORDS (32) records (few bins), so its wrap-around leaves
@@ -462,7 +464,10 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
             cg = (dt[i] + t * (dt[i + 1] - dt[i])) / (2 * TWO_PI * fl[sel])
             cg_low[sel] = np.minimum(cg_low[sel], np.where(np.isfinite(k) & (cg > 0), cg, np.inf))
     cg_low = np.minimum.accumulate(cg_low[::-1])[::-1]       # slowest at or above f
-    args = (distance_m, quantity, sensor_length_m, source, True, float(loss_factor))
+    # w is synthesised as the time integral of v (its own R ~ 1/f is not integrable at DC)
+    disp = quantity == "displacement"
+    args = (distance_m, "velocity" if disp else quantity, sensor_length_m, source, True,
+            float(loss_factor))
     G = force.derivative_spectrum
     reach = distance_m + sensor_length_m
 
@@ -517,12 +522,14 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     Y[band] = R / (1j * TWO_PI * fb)
     y = irfft(Y, n=n_fft) * fs_hz
     tt = np.arange(n_fft) / fs_hz
-    if quantity != "displacement":
-        # the DFT drops r's DC bin; restore it as the mean of Re R over the bin's
-        # half-width [0, df/2] (quadrature in ln f: R may be ~ln f or f^-1/2)
-        R0 = _dc_bin_mean(lambda fq: np.conj(_transfer_bands(bands, fq, *args)) * G(fq),
-                          df / 2.0, log_tail=source == "point")
-        y = y + df * R0 * tt
+    # the DFT drops r's DC bin; restore it as the mean of Re R over the bin's
+    # half-width [0, df/2] (quadrature in ln f: R may be ~ln f or f^-1/2)
+    R0 = df * _dc_bin_mean(lambda fq: np.conj(_transfer_bands(bands, fq, *args)) * G(fq),
+                           df / 2.0, log_tail=source == "point")
+    y = y + R0 * tt
+    if disp:         # w = int_0^t v: periodic antiderivative of the DFT part + R0 t^2 / 2
+        Y[band] = Y[band] / (1j * TWO_PI * fb)
+        yw = irfft(Y, n=n_fft) * fs_hz + 0.5 * R0 * tt * tt
     # -- high part (zero near DC: its antiderivative decays after the waves have passed)
     if np.isfinite(f1):
         Th = period(max(2.0 * t_rec, t_rec + force.duration_s + 2.0 / (f2 - f1)), f1)
@@ -536,18 +543,20 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
         n_out = min(n_fft, nh)
         y = y[:n_out] + (irfft(Yh, n=nh) * fs_hz)[:n_out]
         tt = tt[:n_out]
+        if disp:
+            Yh[bh] = Yh[bh] / (1j * TWO_PI * fh[bh])
+            yw = yw[:n_out] + (irfft(Yh, n=nh) * fs_hz)[:n_out]
     # t = 0 is the force onset: the one remaining unknown, the constant of
     # integration, makes the record vanish before the first possible arrival
     # (bound: 1.2 x the fastest bulk plane-wave speed, mode independent, so responses of
-    # separate modes still add up). Nothing is extrapolated (except w, below).
+    # separate modes still add up). Nothing is extrapolated.
     c_max = 1.2 * max(float(np.sqrt(np.max(np.diag(C)[:3]) / p.material.density))
                       for p, C in zip(laminate.plies, ply_stiffness(laminate, direction_deg)))
     m = int(0.9 * (distance_m - sensor_length_m / 2) / c_max * fs_hz) if c_max > 0 else 0
-    if quantity == "displacement" and m >= 8:
-        # w: R ~ 1/f (point) is not integrable (a net force makes an infinite plate drift,
-        # w ~ t); the DC-drop ramp is fitted before the first arrival and removed
-        b, a = np.polyfit(tt[:m], y[:m], 1)
-        y = y - (a + b * tt)
-    else:
-        y = y - (np.mean(y[:m]) if m >= 2 else y[0])
+    pre = lambda v: np.mean(v[:m]) if m >= 2 else v[0]
+    c_v = pre(y)
+    y = y - c_v
+    if disp:                 # w = int_0^t (v - c_v): the same constant of v, then w's own
+        yw = yw - c_v * tt
+        y = yw - pre(yw)
     return y[:n_samples]

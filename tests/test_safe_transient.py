@@ -277,3 +277,22 @@ def test_loss_factor_attenuation_matches_the_complex_modulus_plate():
         np.testing.assert_allclose(np.abs(h[1] / h[0]), np.exp(-np.abs(k.imag) * x), rtol=3e-3)
     with pytest.raises(SafeError):
         transient_response(AL_PLATE, 0.2, hammer_force(1e-4), 1e6, 100, loss_factor=-0.1)
+
+
+@pytest.mark.parametrize("r", [0.1, 0.2])
+def test_displacement_follows_kirchhoff_plateau_and_drift(r):
+    """w of an infinite plate: a tap (impulse I) leaves it displaced by ~I / (8 sqrt(D rho h))
+    (impulse response (1 / 4 pi beta rho h)(pi/2 - Si(r^2 / 4 beta t))); a step makes it drift,
+    w = int_0^t of that (the point mobility is real). The record follows both to its end."""
+    fs, n, Tc = 2e6, 8000, 50e-6
+    t = np.arange(n) / fs
+    g = lambda tt: (np.pi / 2 - sici(r ** 2 / (4 * BETA_AL * tt))[0]) / (4 * np.pi * BETA_AL * 2700.0 * H)
+    ts = np.linspace(1e-9, t[-1], 400001)
+    gs = g(ts)
+    drift = np.interp(t, ts, np.concatenate([[0.0], np.cumsum(0.5 * (gs[1:] + gs[:-1]) * np.diff(ts))]))
+    late = t > 1e-3
+    for force, ref in ((hammer_force(Tc), 2 * Tc / np.pi * g(np.maximum(t - Tc / 2, 1e-9))),
+                       (pencil_lead_break(), drift)):
+        w = transient_response(AL_PLATE, r, force, fs, n, quantity="displacement")
+        assert np.max(np.abs(w[late] - ref[late])) < 2e-2 * np.max(np.abs(w))
+        assert np.max(np.abs(w[t < 0.8 * r / 5500.0])) < 1e-3 * np.max(np.abs(w))     # causal
