@@ -378,8 +378,10 @@ def test_wave_shot_scalogram_and_group_velocity(win, qtbot, tmp_path):
     assert {acq.lights[n].state for n in ("mfc1", "mfc2")} == {False}
     win.tabs.setCurrentIndex(1)
     shot(win, "view_acquisition_wave")
+    win.setup.temperature_c = 24.5          # as read from the environment probe
     qtbot.mouseClick(win.modes.analyze_btn, Qt.LeftButton)
     qtbot.waitUntil(lambda: win.job is None, timeout=30_000)
+    assert win.features()["rig"]["temperature_c"] == 24.5     # goes into the features
     win.tabs.setCurrentIndex(3)
     view = win.waves
     assert view.shot_combo.count() == 2
