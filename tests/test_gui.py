@@ -473,3 +473,22 @@ def test_specimen_edit_save_and_reload(win, tmp_path):
     assert box.load_file(str(target)) and box.text() == text
     spec = box.validate()
     assert spec is not None and spec.laminate.plies[0].material.E2 == 9.5e9
+
+
+def test_a_cancelled_job_that_cannot_stop_early_is_discarded(win, qtbot, tmp_path):
+    """The Gap tab's diagnosis runs to its end once started; cancelling discards it and
+    the tab is usable again."""
+    pytest.importorskip("labid.diagnosis")
+    ident = pytest.importorskip("labid.identification")
+    doc = ident.synthetic_features("cfrp", n_modes=4, waves=())
+    p = tmp_path / "f.json"
+    p.write_text(json.dumps(doc))
+    assert win.identification.load_features_file(str(p))
+    win.gap.reload()
+    qtbot.mouseClick(win.gap.run_btn, Qt.LeftButton)
+    assert win.gap.job is not None and win.cancel_btn.isVisible()
+    qtbot.mouseClick(win.cancel_btn, Qt.LeftButton)
+    qtbot.waitUntil(lambda: win.job is None, timeout=60_000)
+    assert win.gap.job is None and win.gap.run_btn.isEnabled() and win.gap.result is None
+    assert not win.cancel_btn.isVisible()
+    assert win.messages[-1][0] == "diagnosis: cancelled (result discarded)", win.messages[-1]

@@ -107,7 +107,9 @@ class MainWindow(QMainWindow):
 
         def ok(result):
             if job.cancelled and exclusive and name not in ("acquisition",):
-                self.message(f"{name}: cancelled")
+                self.message(f"{name}: cancelled (result discarded)")
+                if on_failed:
+                    on_failed("cancelled")
                 return
             on_done(result)
 
