@@ -353,7 +353,10 @@ def test_whole_session_on_the_simulated_rig(qtbot, tmp_path):
     assert win2.identification.table.rowCount() == 3
     assert win2.identification.chosen_params() == ("E1", "E2", "G12")
     assert len(win2.modes.peaks) == len(auto)
+    assert sum(p.manual for p in win2.modes.peaks) == 1
     assert win2.gap.result["verdict"] == "sensor_mass"
+    # picks stay editable after reopening (the spectra are recomputed from the shots)
+    assert win2.modes.toggle_peak(auto[-1]) == "removed" and len(win2.modes.peaks) == len(auto) - 1
     shot(win2, "view_reopened")
     # the report of this run
     from labid.report import write_report
