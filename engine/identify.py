@@ -11,7 +11,10 @@ Estimators
   ``(y_model - y) / sigma`` of all blocks at once (the combined misfit), with
   an optional Gaussian prior on the fitted parameters. Parameters are fitted
   as logarithms (``space="log"``, kept positive) or as ratios to the start
-  (``space="linear"``).
+  (``space="linear"``). Blocks without an analytic Jacobian (SAFE) get
+  forward differences with Broyden updates in between; a weak or absent
+  prior is approached by continuation from a firmer one; convergence is
+  judged on the Newton decrement, with the forward models' own noise floor.
 * :func:`bayesian_update` -- the Lai & Ip update of the paper (Eqs. 15-20):
   ``p = p0 + (C_P + S^T C_R S)^-1 S^T C_R (r~ - r - S (p0 - p))`` iterated to
   convergence, with a step control (step halving on a cost increase and a
@@ -25,6 +28,8 @@ correlations from the Gauss-Newton (Laplace) covariance
 ``(J^T J + P)^-1`` of the whitened problem, an identifiability report built
 from the singular values of each block's whitened sensitivities, relative
 residuals per block, the converged flag and the iteration history.
+:mod:`engine.identify_models` builds the plate-FE and SAFE blocks;
+:mod:`engine.identify_mcmc` samples the full posterior (emcee).
 """
 from __future__ import annotations
 
