@@ -92,6 +92,7 @@ class ModalData:
     sigma_hz: np.ndarray
     points: np.ndarray | None = None
     shapes: np.ndarray | None = None
+    pairing: str = "auto"   # 'mac', 'frequency', 'order' or 'auto' (MAC with >= 6 shape points)
 
 
 @dataclass(frozen=True)
@@ -184,6 +185,28 @@ def _log_sinc_slope(x: np.ndarray) -> np.ndarray:
     return np.where(x < 1e-6, 0.0, 1.0 / np.tan(xs) - 1.0 / xs)
 
 
+#: fewer shape points than this: measured modes are paired by frequency, not MAC
+MIN_MAC_POINTS = 6
+
+
+class _FreqPaired:
+    """A ModalForward over n + extra modes (by order) restricted to a fixed selection."""
+
+    def __init__(self, inner: ModalForward, sel: np.ndarray):
+        self.inner, self.sel, self.model = inner, sel, inner.model
+
+    def predict(self, params):
+        return self.inner.predict(params)[self.sel]
+
+    def jacobian(self, params, names):
+        f, J = self.inner.jacobian(params, names)
+        return f[self.sel], J[self.sel]
+
+    def _solve(self, params):
+        modes, idx = self.inner._solve(params)
+        return modes, idx[self.sel]
+
+
 class ForwardModel:
     """Features predicted for constants and effects (see module docstring).
 
@@ -201,6 +224,7 @@ class ForwardModel:
         else:
             self.base = None
         self._modal_fw: dict = {}
+        self._sel: np.ndarray | None = None
         self._cg: dict = {}
         self._cp: dict = {}
         self.n_modal = 0 if problem.modal is None else len(problem.modal.frequency_hz)
@@ -243,8 +267,22 @@ class ForwardModel:
                     raise GapError("support_stiffness needs rig.supports")
                 model = model.with_springs([(x, y, spring) for x, y in p.rig.supports])
             md = p.modal
-            fw = ModalForward(model, self.n_modal, points=md.points, shapes=md.shapes,
-                              material=p.material)
+            by_freq = md.pairing == "frequency" or (
+                md.pairing == "auto" and (md.shapes is None or np.shape(md.shapes)[1] < MIN_MAC_POINTS))
+            if by_freq:
+                # too few shape points for MAC: pair once, at the nominal model, by
+                # nearest log-frequency among n + 4 predicted modes (missing modes allowed)
+                inner = ModalForward(model, self.n_modal + 4, material=p.material)
+                if self._sel is None:
+                    from scipy.optimize import linear_sum_assignment
+                    f_nom = inner.predict(p.nominal())
+                    cost = np.abs(np.log(np.asarray(md.frequency_hz, float))[:, None] - np.log(f_nom)[None, :])
+                    rows, cols = linear_sum_assignment(cost)
+                    self._sel = cols[np.argsort(rows)]
+                fw = _FreqPaired(inner, self._sel)
+            else:
+                fw = ModalForward(model, self.n_modal, points=md.points, shapes=md.shapes,
+                                  material=p.material)
             if len(self._modal_fw) > 24:
                 self._modal_fw.pop(next(iter(self._modal_fw)))
             self._modal_fw[key] = fw

@@ -145,7 +145,7 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     if kind == "ply_angle":
         true_lam = Laminate(tuple(Ply(p.material, p.angle_deg + mag, p.thickness) for p in lam.plies))
     problem = GapProblem(true_lam, length, width, rig,
-                         ModalData(np.ones(N_MODES), np.ones(N_MODES)), waves)
+                         ModalData(np.ones(N_MODES), np.ones(N_MODES), pairing="order"), waves)
     if outside:
         from engine.plate_fe import Mesh
         mesh = Mesh.default(length, width, lam.thickness, n=9)
