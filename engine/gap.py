@@ -17,10 +17,11 @@ model-discretisation allowance, ``GapOptions.model_rel_sigma``):
    below ``detect_sigma`` means *undetectable*, reported with the bias
    the absorbed effect puts into the constants (per unit magnitude). The
    ``top_k`` best linear candidates are refitted jointly with the constants
-   (Gauss-Newton, nonlinear residuals, constants' Jacobian frozen at the best
-   fit), ranked by chi^2 (equal parameter count, so by BIC too), and checked
-   on held-out data (two interleaved folds of modes and of wave bands,
-   linearised about the fit).
+   (Levenberg-Marquardt on the nonlinear residuals from the nominal constants,
+   constants' Jacobian frozen at nominal, effect column by secant), ranked by
+   chi^2 (equal parameter count, so by BIC too), and checked on held-out
+   data (two interleaved folds of modes and of wave bands, linearised about
+   the fit).
 4. Verdict: ``none`` without a significant gap; the best effect when it
    passes the chi^2 test (p > ``accept_alpha``), beats "no effect" by BIC and
    shrinks the held-out gap; otherwise ``unattributed``. Effects whose chi^2
