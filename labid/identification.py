@@ -107,6 +107,19 @@ def load_features(path: str | Path) -> dict:
     return read_features(path)
 
 
+def _nan_to_null(v: Any) -> Any:
+    """JSON view of a (possibly already validated) document: NaN -> None."""
+    if isinstance(v, Mapping):
+        return {k: _nan_to_null(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_nan_to_null(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _nan_to_null(v.tolist())
+    if isinstance(v, float) and math.isnan(v):
+        return None
+    return v
+
+
 def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str = "<features>",
                           specimen: Specimen | None = None, material: str | None = None,
                           modal_model=None) -> Problem:
@@ -117,7 +130,7 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
     ``modal_model`` may pass a prebuilt ``PlateModel`` (same specimen).
     """
     notes: list[str] = []
-    doc = validate_features(doc, src)
+    doc = validate_features(_nan_to_null(doc), src)
     spec = specimen if specimen is not None else _specimen(doc, Path(base_dir), src)
     mats = spec.laminate.materials
     if material is None:

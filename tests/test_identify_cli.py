@@ -129,3 +129,23 @@ def test_identify_variants_splits_the_data():
     res = identify_variants(doc, start={"E": 80e9, "G": 30e9})
     assert list(res) == ["waves"]
     assert res["waves"].params["E"] == pytest.approx(AL["E"], rel=1e-3)
+
+
+def test_null_velocities_and_missing_sigmas(tmp_path, capsys):
+    """A velocity the CWT could not measure is null (CONTRACT 2): the point is dropped;
+    absent sigmas get the documented default (1 % of the value) and a note."""
+    doc = synthetic_features("aluminium", n_modes=None, waves=(("A0", 0.0, 50e3, 12),))
+    doc["specimen"] = "aluminium"
+    w = doc["waves"][0]
+    w["group_velocity_m_s"][0] = None
+    del w["sigma_m_s"]
+    p = tmp_path / "f.json"
+    p.write_text(json.dumps(doc))
+    out = tmp_path / "r.json"
+    code, stdout, err = _run([p, "--start", "E=80e9,G=30e9", "--json", out], capsys)
+    assert code == 0, err
+    r = json.loads(out.read_text())
+    assert r["parameters"]["E"]["value"] == pytest.approx(AL["E"], rel=1e-3)
+    assert len(r["blocks"]["waves[0]:A0@0deg"]["observed"]) == 11
+    assert any("sigma_m_s absent" in m for m in r["warnings"])
+    assert any("dropped" in m for m in r["warnings"])
