@@ -123,6 +123,7 @@ class Estimate:
     message: str = ""
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
+    sigma_scale: dict = None  # per data kind, when sigmas were inflated (Birge ratio)
 
     @property
     def params(self) -> dict[str, float]:
@@ -158,6 +159,7 @@ class Estimate:
             "blocks": {k: {kk: (vv.tolist() if isinstance(vv, np.ndarray) else vv)
                            for kk, vv in v.items()} for k, v in self.residuals.items()},
             "warnings": list(self.warnings),
+            "sigma_scale": dict(self.sigma_scale or {}),
             "message": self.message,
             "history": list(self.history),
         }

@@ -284,7 +284,8 @@ def _start(problem: Problem, names: Sequence[str], start: Mapping[str, float] | 
 # estimation
 # ---------------------------------------------------------------------------
 def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
-        *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60) -> Estimate:
+        *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
+        scale_sigmas: bool = True) -> Estimate:
     """Estimate ``names`` (default: :func:`default_params`) from ``problem``.
 
     ``method``: ``lm`` (combined whitened least squares, Levenberg-Marquardt
@@ -292,6 +293,13 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     relative prior std, default 0.5) or ``nelder-mead`` (Eq. 29). ``prior``
     for ``lm``: None (maximum likelihood, default) or the std of log p about
     the start.
+
+    ``scale_sigmas`` (``lm`` only): a data set (modal, waves) whose chi^2 per
+    point is significantly above 1 (by more than 3 sqrt(2/n)) but below 10 has
+    its sigmas multiplied by sqrt(chi^2/n) (the Birge ratio) and the fit is
+    repeated from the estimate: the stated sigmas were too small for the
+    model/data agreement actually reached, and the uncertainty widens
+    accordingly. Never shrinks sigmas; not applied to poor fits (local minima).
     """
     names = tuple(names) if names else default_params(problem)
     _check_names(problem, names, "--params")
@@ -311,7 +319,10 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
             est = nelder_mead_fit(problem.blocks, names, st, prior=prior)
     except IdentificationError as e:
         raise UserError(str(e), file=problem.source) from None
-    warnings = list(est.warnings) + list(problem.notes)
+    scale_notes: list[str] = []
+    if scale_sigmas and method == "lm":
+        est, scale_notes = _birge_refit(problem, est, names, st, prior, max_iter)
+    warnings = list(est.warnings) + list(problem.notes) + scale_notes
     chi2 = sum(r["chi2"] for r in est.residuals.values())
     n = sum(r["n"] for r in est.residuals.values())
     if chi2 > 10.0 * n:
@@ -320,6 +331,29 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     if problem.modal_forward is not None:
         warnings += problem.modal_forward.warnings
     return replace(est, warnings=tuple(warnings))
+
+
+def _birge_refit(problem: Problem, est: Estimate, names, start, prior, max_iter
+                 ) -> tuple[Estimate, list[str]]:
+    scales: dict[str, float] = {}
+    for kind in dict.fromkeys(b.kind for b in problem.blocks):
+        chi2 = sum(r["chi2"] for r in est.residuals.values() if r["kind"] == kind)
+        n = sum(r["n"] for r in est.residuals.values() if r["kind"] == kind)
+        ratio = chi2 / n
+        if 1.0 + 3.0 * math.sqrt(2.0 / n) < ratio < 10.0:
+            scales[kind] = math.sqrt(ratio)
+    if not scales:
+        return est, []
+    blocks = [replace(b, sigma=b.sigma * scales.get(b.kind, 1.0)) for b in problem.blocks]
+    if isinstance(prior, (int, float)):   # keep the prior centred on the original start
+        prior = Prior(mean=dict(start), rel_std={n: float(prior) for n in names})
+    est2 = estimate(blocks, names, est.params, prior=prior, max_iter=max_iter)
+    est2 = replace(est2, start=dict(start), iterations=est.iterations + est2.iterations,
+                   history=est.history + est2.history, sigma_scale=scales,
+                   seconds=est.seconds + est2.seconds)
+    notes = [f"{k}: chi^2 per point {s * s:.3g} > 1: sigmas scaled by {s:.3g} (Birge ratio) and refitted"
+             for k, s in scales.items()]
+    return est2, notes
 
 
 def identify(features: str | Path | Mapping, names: Sequence[str] | None = None,

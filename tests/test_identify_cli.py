@@ -149,3 +149,25 @@ def test_null_velocities_and_missing_sigmas(tmp_path, capsys):
     assert len(r["blocks"]["waves[0]:A0@0deg"]["observed"]) == 11
     assert any("sigma_m_s absent" in m for m in r["warnings"])
     assert any("dropped" in m for m in r["warnings"])
+
+
+def test_birge_ratio_widens_understated_sigmas():
+    """Noise 2.5x the stated sigmas: the chi^2 per point (~6) scales the sigmas by its
+    square root and the std widens by that factor; the estimate barely moves."""
+    from labid.identification import problem_from_features, run
+
+    doc = synthetic_features("aluminium", n_modes=None, waves=(("A0", 0.0, 50e3, 40),))
+    doc["specimen"] = "aluminium"
+    w = doc["waves"][0]
+    rng = np.random.default_rng(4)
+    cg = np.array(w["group_velocity_m_s"])
+    w["group_velocity_m_s"] = (cg * (1 + 0.025 * rng.standard_normal(cg.size))).tolist()
+    prob = problem_from_features(doc)
+    plain = run(prob, ("E", "G"), {"E": 80e9, "G": 30e9}, scale_sigmas=False)
+    chi2_n = plain.residuals["waves[0]:A0@0deg"]["chi2"] / 40
+    assert 3.0 < chi2_n < 10.0
+    scaled = run(prob, ("E", "G"), {"E": 80e9, "G": 30e9})
+    assert scaled.sigma_scale["waves"] == pytest.approx(np.sqrt(chi2_n), rel=1e-6)
+    np.testing.assert_allclose(scaled.std / plain.std, np.sqrt(chi2_n), rtol=0.02)
+    np.testing.assert_allclose(scaled.values, plain.values, rtol=1e-6)
+    assert any("Birge" in m for m in scaled.warnings)
