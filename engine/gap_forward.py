@@ -185,8 +185,10 @@ def _log_sinc_slope(x: np.ndarray) -> np.ndarray:
     return np.where(x < 1e-6, 0.0, 1.0 / np.tan(xs) - 1.0 / xs)
 
 
-#: fewer shape points than this: measured modes are paired by frequency, not MAC
+#: fewer shape points than this: measured modes are paired once, at the nominal
+#: model, by log-frequency distance / PAIR_REL_FREQ + (1 - MAC) (Hungarian)
 MIN_MAC_POINTS = 6
+PAIR_REL_FREQ = 0.05
 
 
 class _FreqPaired:
@@ -275,8 +277,15 @@ class ForwardModel:
                 inner = ModalForward(model, self.n_modal + 4, material=p.material)
                 if self._sel is None:
                     from scipy.optimize import linear_sum_assignment
+
+                    from .identify_models import mac
                     f_nom = inner.predict(p.nominal())
-                    cost = np.abs(np.log(np.asarray(md.frequency_hz, float))[:, None] - np.log(f_nom)[None, :])
+                    cost = np.abs(np.log(np.asarray(md.frequency_hz, float))[:, None]
+                                  - np.log(f_nom)[None, :]) / PAIR_REL_FREQ
+                    if md.shapes is not None and md.points is not None:
+                        modes, idx = inner._solve(p.nominal())
+                        cost = cost + 1.0 - mac(np.asarray(md.shapes, float),
+                                                inner.model.shapes_at(modes, md.points)[idx])
                     rows, cols = linear_sum_assignment(cost)
                     self._sel = cols[np.argsort(rows)]
                 fw = _FreqPaired(inner, self._sel)
