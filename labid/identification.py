@@ -285,7 +285,7 @@ def _start(problem: Problem, names: Sequence[str], start: Mapping[str, float] | 
 # ---------------------------------------------------------------------------
 def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
         *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
-        scale_sigmas: bool = True) -> Estimate:
+        scale_sigmas: bool = True, consistency: bool = True) -> Estimate:
     """Estimate ``names`` (default: :func:`default_params`) from ``problem``.
 
     ``method``: ``lm`` (combined whitened least squares, Levenberg-Marquardt
@@ -300,6 +300,13 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     repeated from the estimate: the stated sigmas were too small for the
     model/data agreement actually reached, and the uncertainty widens
     accordingly. Never shrinks sigmas; not applied to poor fits (local minima).
+
+    ``consistency`` (``lm``, several data sets): each data set is also fitted
+    alone (from the combined estimate); when the combined chi^2 exceeds the
+    sum of the separate minima by more than chance allows (chi^2 test with k
+    degrees of freedom, k = combinations every data set constrains, p < 0.05),
+    the data sets disagree beyond their sigmas and a warning names the
+    parameters they pull apart most: the combined std is then optimistic.
     """
     names = tuple(names) if names else default_params(problem)
     _check_names(problem, names, "--params")
@@ -322,6 +329,8 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     scale_notes: list[str] = []
     if scale_sigmas and method == "lm":
         est, scale_notes = _birge_refit(problem, est, names, st, prior, max_iter)
+    if consistency and method == "lm" and len(problem.kinds) > 1:
+        scale_notes += _consistency(problem, est, names, prior, max_iter)
     warnings = list(est.warnings) + list(problem.notes) + scale_notes
     chi2 = sum(r["chi2"] for r in est.residuals.values())
     n = sum(r["n"] for r in est.residuals.values())
@@ -354,6 +363,47 @@ def _birge_refit(problem: Problem, est: Estimate, names, start, prior, max_iter
     notes = [f"{k}: chi^2 per point {s * s:.3g} > 1: sigmas scaled by {s:.3g} (Birge ratio) and refitted"
              for k, s in scales.items()]
     return est2, notes
+
+
+def _consistency(problem: Problem, est: Estimate, names, prior, max_iter) -> list[str]:
+    scale = est.sigma_scale or {}
+    blocks = [replace(b, sigma=b.sigma * scale.get(b.kind, 1.0)) for b in problem.blocks]
+    chi2_all = sum(r["chi2"] for r in est.residuals.values())
+    chi2_sep, sep = 0.0, {}
+    for kind in dict.fromkeys(b.kind for b in blocks):
+        bk = [b for b in blocks if b.kind == kind]
+        try:
+            # a partial minimisation only understates the excess (conservative)
+            e = estimate(bk, names, est.params, prior=prior, max_iter=min(max_iter, 20))
+        except (IdentificationError, ValueError):
+            return []
+        chi2_sep += sum(r["chi2"] for r in e.residuals.values())
+        sep[kind] = e
+    # degrees of freedom of the excess: the combinations every data set sees
+    # (whitened singular values above 1, i.e. constrained better than a factor e)
+    k = min(sum(1 for sv in est.identifiability["data_sets"][kind]["singular_values"] if sv > 1.0)
+            for kind in sep)
+    excess = chi2_all - chi2_sep
+    if k == 0:
+        return []
+    from scipy.stats import chi2 as chi2_dist  # noqa: PLC0415
+    pval = float(chi2_dist.sf(excess, k))
+    if pval >= 0.05:
+        return []
+    # which parameters the data sets pull apart: difference in units of the combined std
+    # where: separate estimates away from the combined one, in their own marginal std
+    # (only where that std is meaningful, < 50 %)
+    pulls = []
+    for j, n in enumerate(names):
+        d = [abs(np.log(e.values[j] / est.values[j])) / e.rel_std[n] for e in sep.values()
+             if e.rel_std[n] < 0.5]
+        if d:
+            pulls.append((max(d), n))
+    pulls.sort(reverse=True)
+    where = ", ".join(f"{n} ({d:.1f} std of one data set alone)" for d, n in pulls[:3] if d > 1
+                      ) or "no single parameter"
+    return [f"data sets disagree: combined chi^2 exceeds the separate fits by {excess:.3g} "
+            f"(~{k} expected, p = {pval:.2g}); pulled apart: {where}; the combined std is optimistic"]
 
 
 def identify(features: str | Path | Mapping, names: Sequence[str] | None = None,

@@ -210,3 +210,4 @@ def test_lai_ip_bayesian_update_on_plate_frequencies(cfrp):
     assert est.converged and est.method.startswith("bayesian-update")
     for n, e in _rel_err(est, CFRP_TRUE).items():
         assert abs(e) < 5e-3, (n, e)
+
