@@ -155,7 +155,7 @@ def plot_gap(result: Mapping, path: str | Path) -> None:
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(11, 7.5), gridspec_kw={"height_ratios": [3, 2]})
     x = np.arange(len(r0))
     colors = {s: f"C{i}" for i, s in enumerate(dict.fromkeys(sets))}
-    a1.bar(x - 0.2, r0, 0.4, color=[colors[s] for s in sets], label="before (constants only)")
+    a1.bar(x - 0.2, r0, 0.4, color=[colors[s] for s in sets], label="before (coloured by set)")
     a1.bar(x + 0.2, r1, 0.4, color="0.6", label=f"after ({result['verdict']})")
     a1.axhspan(-2, 2, color="0.9", zorder=-1)
     a1.set_ylabel("(model - measured) / sigma")
@@ -171,6 +171,7 @@ def plot_gap(result: Mapping, path: str | Path) -> None:
     a2.barh([d["group"] for d in groups][::-1], [d["chi2"] / max(d["n"], 1) for d in groups][::-1],
             color=["C3" if d["significant"] else "C0" for d in groups][::-1])
     a2.axvline(1.0, color="k", lw=0.8)
+    a2.set_xscale("log")
     a2.set_xlabel("chi^2 per feature (1 = noise); red: significant")
     a2.tick_params(axis="y", labelsize=6)
     fig.tight_layout()
