@@ -37,7 +37,7 @@ from scipy import fft as sfft
 __all__ = [
     "WaveError", "Wavelet", "PAPER_ALUMINIUM", "PAPER_CFRP", "cwt", "cwt_decimated", "white_noise_level",
     "Arrivals", "arrival_times", "velocity_gate", "expected_gate", "GroupVelocity",
-    "group_velocity", "correct_dispersion_bias",
+    "group_velocity", "correct_dispersion_bias", "independent_points",
 ]
 
 
@@ -486,3 +486,26 @@ def group_velocity(far: Arrivals, distance_m: float, near: Arrivals | None = Non
     vi = np.where(inside, np.interp(f, fk, vk), np.nan)
     si = np.where(inside, np.interp(f, fk, sk), np.nan)
     return GroupVelocity(f, vi, si, inside)
+
+
+def independent_points(freqs_hz: Sequence[float], valid: np.ndarray, wavelet: Wavelet,
+                       spacing: float = 2.0 * np.sqrt(2.0)) -> np.ndarray:
+    """Mask of valid frequencies at least ``spacing`` wavelet frequency-stds apart.
+
+    Ridge points closer than the wavelet's frequency resolution share most of
+    its energy: for white noise the CWT coefficients at two frequencies d
+    energy-stds apart correlate as exp(-d^2/8), so the default spacing 2*sqrt(2)
+    keeps that correlation at 1/e or less. A fit that whitens by each point's
+    sigma must see only nearly independent points, or its covariance is too
+    small by about the square root of the oversampling. Greedy from the lowest
+    frequency up; ``spacing`` in units of ``Wavelet.freq_std_hz``.
+    """
+    f = np.asarray(freqs_hz, float)
+    keep = np.zeros(f.shape, bool)
+    last = -np.inf
+    for i in np.flatnonzero(np.asarray(valid, bool)):
+        # the std at the upper point (the wider of the two spectra): conservative
+        if not np.isfinite(last) or f[i] - last >= spacing * float(wavelet.freq_std_hz(f[i])):
+            keep[i] = True
+            last = f[i]
+    return keep

@@ -363,11 +363,14 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
                 notes.append(f"S0 along {direction:g} deg: {int(ok.sum())} frequencies measured and stored "
                              "in the run (analysis/waves), not put in the features (--with-s0)")
                 continue
+            # the features carry only points a wavelet resolution apart: neighbours on the
+            # dense grid share their errors (the full curve stays in the run file)
+            ok = waves.independent_points(freqs, ok, wl)
             out.append({"mode": mode, "direction_deg": float(direction),
                         "frequency_hz": [float(f) for f in freqs[ok]],
                         "group_velocity_m_s": [float(v) for v in gv.velocity_m_s[ok]],
                         "sigma_m_s": [float(s) for s in gv.sigma_m_s[ok]]})
-            notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} frequencies "
+            notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} independent frequencies "
                          f"{freqs[ok].min() / 1e3:.3g}-{freqs[ok].max() / 1e3:.3g} kHz from {len(recs)} shot(s), "
                          f"{wl.name}, {'source to sensor' if force is not None or near is None else 'two sensors'}")
         path = far.distance_m - (near.distance_m if near is not None else 0.0)

@@ -65,7 +65,7 @@ def test_wave_features_match_the_safe_curve(analysed):
     f = np.array(a0[0]["frequency_hz"])
     v = np.array(a0[0]["group_velocity_m_s"])
     s = np.array(a0[0]["sigma_m_s"])
-    assert f.size >= 20
+    assert f.size >= 6 and f.max() / f.min() > 2   # nearly independent points over the band
     cg = safe.group_velocity(load_specimen("cfrp").laminate, f, "A0")
     assert np.abs(v / cg - 1).max() < 0.01
     assert np.all(s > 0) and np.all(s < 0.05 * v)
@@ -176,7 +176,7 @@ def test_aluminium_hammer_source_to_sensor(tmp_path: Path):
     (a0,) = [w for w in feats["waves"] if w["mode"] == "A0"]
     f = np.array(a0["frequency_hz"])
     v = np.array(a0["group_velocity_m_s"])
-    assert f.size >= 50 and f.max() > 30e3
+    assert f.size >= 6 and f.min() < 5e3 and f.max() > 30e3   # independent points, cmor2-1
     cg = safe.group_velocity(load_specimen("aluminium").laminate, f, "A0")
     assert np.abs(v / cg - 1).max() < 0.01
     assert any("cmor2-1" in n and "source to sensor" in n for n in feats["analysis"]["notes"])

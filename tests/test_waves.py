@@ -308,3 +308,27 @@ def test_white_noise_level_matches_the_transform_of_noise():
         W = waves.cwt(x, FS, f, wl, precision="double")
         emp = np.sqrt((np.abs(W[:, 20_000:-20_000]) ** 2).mean(axis=1))
         np.testing.assert_allclose(emp, waves.white_noise_level(2.0, FS, f, wl), rtol=0.03)
+
+
+def test_independent_points_are_a_wavelet_resolution_apart():
+    """White-noise CWT coefficients at neighbouring kept frequencies correlate by at
+    most 1/e (the normalised overlap of the two wavelet spectra), and the kept set
+    is not needlessly sparse: the gap between neighbours stays below twice that."""
+    from engine.waves import Wavelet, independent_points
+    wl = Wavelet(2.0, 2.0)
+    f = np.linspace(10e3, 200e3, 100)
+    keep = independent_points(f, np.ones(f.size, bool), wl)
+    fk = f[keep]
+    grid = np.linspace(0, 400e3, 40001)
+
+    def spectrum(fc):   # |Psi(f)| of the scaled Morlet: its square has std freq_std_hz
+        return np.exp(-0.25 * ((grid - fc) / wl.freq_std_hz(fc)) ** 2)
+
+    def overlap(a, b):   # correlation of the two coefficients for white noise
+        pa, pb = spectrum(a), spectrum(b)
+        return np.sum(pa * pb) / np.sqrt(np.sum(pa * pa) * np.sum(pb * pb))
+
+    assert keep[0] and 5 <= keep.sum() < 40
+    assert all(overlap(a, b) <= np.exp(-1) + 0.02 for a, b in zip(fk[:-1], fk[1:]))
+    # a point halfway between two kept neighbours would correlate more than 1/e with both
+    assert all(overlap(a, (a + b) / 2) > np.exp(-1) for a, b in zip(fk[:-1], fk[1:]))
