@@ -59,7 +59,8 @@ def write_json(result: dict, path: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="labid", description=__doc__.splitlines()[0])
+    parser = _Parser(prog="labid", description="Elastic constants of composite plates from "
+                     "vibration and guided waves, without cutting them.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     for name in COMMANDS:
         modname = f"labid.cmd_{name}"
