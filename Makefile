@@ -22,7 +22,7 @@ demo: $(STAMP)
 	QT_QPA_PLATFORM=offscreen MPLBACKEND=Agg $(VENV)/bin/labid demo --out $(OUT)
 
 bench: $(STAMP)
-	$(PY) bench/run_all.py
+	for b in bench/bench_*.py; do OMP_NUM_THREADS=1 $(PY) $$b || exit 1; done
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache build *.egg-info
