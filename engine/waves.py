@@ -104,6 +104,20 @@ def _bank(freqs: np.ndarray, fs_hz: float, wavelet: Wavelet, nfft: int, dtype: s
                         float(wavelet.center), int(nfft), dtype)
 
 
+def _pad_smoothly(x: np.ndarray, nfft: int) -> np.ndarray:
+    """``x`` padded to ``nfft`` samples with a raised-cosine ramp from its last sample
+    back to its first: a record ending on an offset (the static strain under a
+    pencil-lead step) must not meet the padding as a step, which every scale would see."""
+    n = x.size
+    xp = np.empty(nfft)
+    xp[:n] = x
+    m = nfft - n
+    if m:
+        r = 0.5 * (1 - np.cos(np.pi * (np.arange(1, m + 1) / (m + 1))))
+        xp[n:] = x[-1] + (x[0] - x[-1]) * r
+    return xp
+
+
 def cwt(x: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavelet: Wavelet = PAPER_ALUMINIUM,
         method: Literal["fft", "pywt"] = "fft", precision: Literal["single", "double"] = "single") -> np.ndarray:
     """Complex CWT W (nf, n) of record ``x`` sampled at ``fs_hz`` at the frequencies ``freqs_hz``.
@@ -129,15 +143,7 @@ def cwt(x: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavelet: Wavelet
     pad = int(np.ceil(4 * wavelet.time_std_s(freqs.min()) * fs_hz))
     nfft = sfft.next_fast_len(n + pad)
     single = precision == "single"
-    # pad with a raised-cosine ramp from the last sample back to the first: a record
-    # ending on an offset (the static strain under a pencil-lead step) must not
-    # meet the zero padding as a step, which every scale would see
-    xp = np.empty(nfft)
-    xp[:n] = x
-    m = nfft - n
-    if m:
-        r = 0.5 * (1 - np.cos(np.pi * (np.arange(1, m + 1) / (m + 1))))
-        xp[n:] = x[-1] + (x[0] - x[-1]) * r
+    xp = _pad_smoothly(x, nfft)
     X = sfft.fft(xp.astype(np.float32) if single else xp)
     Y = X[None, :] * _bank(freqs, fs_hz, wavelet, nfft, "float32" if single else "float64")
     return sfft.ifft(Y, axis=1, workers=1, overwrite_x=True)[:, :n]
@@ -187,12 +193,7 @@ def cwt_decimated(x: np.ndarray, fs_hz: float, freqs_hz: Sequence[float],
     nfft = m_len * step
     bank = _support_bank(tuple(float(f) for f in freqs), float(fs_hz), float(wavelet.bandwidth),
                          float(wavelet.center), nfft)
-    xp = np.empty(nfft)
-    xp[:n] = x
-    m = nfft - n
-    if m:
-        r = 0.5 * (1 - np.cos(np.pi * (np.arange(1, m + 1) / (m + 1))))
-        xp[n:] = x[-1] + (x[0] - x[-1]) * r
+    xp = _pad_smoothly(x, nfft)
     X = sfft.fft(xp.astype(np.float32))
     Yf = np.zeros((freqs.size, m_len), np.complex64)
     for i, (k0, h) in enumerate(bank):
