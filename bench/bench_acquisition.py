@@ -12,19 +12,16 @@ Prints a markdown section for bench/RESULTS.md:
 """
 from __future__ import annotations
 
-import os
-import platform
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import h5py
-import numpy as np
-import scipy
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench._machine import machine as _machine  # noqa: E402
 
 from labid.rig import read_rig_text, rig_from_text  # noqa: E402
 from labid.runstore import RunStore  # noqa: E402
@@ -33,14 +30,7 @@ from mock_hw.rig import SimulatedDevice  # noqa: E402
 
 
 def machine() -> str:
-    try:
-        cpu = [ln.split(":", 1)[1].strip() for ln in subprocess.run(
-            ["lscpu"], capture_output=True, text=True).stdout.splitlines() if ln.startswith("Model name")][0]
-    except Exception:  # pragma: no cover
-        cpu = platform.processor()
-    return (f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, numpy {np.__version__}, "
-            f"scipy {scipy.__version__}, h5py {h5py.version.version} (HDF5 {h5py.version.hdf5_version}); "
-            f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
+    return _machine(f"h5py {h5py.version.version} (HDF5 {h5py.version.hdf5_version})")
 
 
 def bench_device(rig, spec, role: str, n_shots: int) -> tuple[dict, list]:

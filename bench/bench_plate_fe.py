@@ -12,33 +12,22 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import resource
-import subprocess
 import sys
 import time
 import tracemalloc
 from pathlib import Path
 
 import numpy as np
-import scipy
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench._machine import machine  # noqa: E402
 
 from engine.plate_fe import DEFAULT_ELEMENTS, EDGE_LAYER, Mesh, PlateModel  # noqa: E402
 from labid.specimen import load_specimen  # noqa: E402
 
 NAMES = ["E1", "E2", "nu12", "G12", "G13", "G23", "density"]
-
-
-def machine() -> str:
-    try:
-        cpu = [ln.split(":", 1)[1].strip() for ln in subprocess.run(
-            ["lscpu"], capture_output=True, text=True).stdout.splitlines() if ln.startswith("Model name")][0]
-    except Exception:  # pragma: no cover
-        cpu = platform.processor()
-    return (f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, numpy {np.__version__}, "
-            f"scipy {scipy.__version__}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
 
 
 def timed(fn, repeat: int) -> tuple[float, float, float]:
@@ -146,9 +135,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=20)
     args = ap.parse_args()
     spec = load_specimen("cfrp")
-    load = ", ".join(f"{v:.1f}" for v in os.getloadavg())
     lines = ["## engine.plate_fe (bench/bench_plate_fe.py)", "",
-             f"Machine: {machine()}. Load average at start: {load} (shared machine; "
+             f"Machine: {machine()} (shared machine; "
              "the min of repeated timings is the least disturbed figure).",
              f"Date: {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}. Plate: {spec.name}, "
              f"{spec.length} x {spec.width} m.", ""]

@@ -13,18 +13,16 @@ Prints a markdown section for bench/RESULTS.md.
 """
 from __future__ import annotations
 
-import os
-import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-import scipy
 import scipy.linalg as sla
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from bench._machine import machine  # noqa: E402
 
 from engine import safe  # noqa: E402
 from engine.safe import dispersion, pencil_lead_break, safe_model, transient_response  # noqa: E402
@@ -45,17 +43,6 @@ def timeit(fn, n):
         cs.append(time.process_time() - c)
     CPU["last"] = min(cs)
     return out, min(ts), float(np.median(ts))
-
-
-def machine() -> str:
-    try:
-        cpu = next(l.split(":", 1)[1].strip() for l in subprocess.run(
-            ["lscpu"], capture_output=True, text=True).stdout.splitlines() if l.startswith("Model name"))
-    except Exception:
-        cpu = platform.processor()
-    return (f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, numpy {np.__version__}, "
-            f"scipy {scipy.__version__}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}; "
-            f"load average at start {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
 def plain_solve(model, f_hz):
