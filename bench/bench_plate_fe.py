@@ -11,7 +11,6 @@ Prints a markdown section for bench/RESULTS.md:
 from __future__ import annotations
 
 import argparse
-import os
 import resource
 import sys
 import time
