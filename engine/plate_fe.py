@@ -552,13 +552,22 @@ class _Block:
         return cls(dofs, k_pos, indptr.astype(np.int32), new[pat.indices[k_pos]].astype(np.int32),
                    m_sel, m_indptr.astype(np.int32))
 
-    def eig(self, kd: np.ndarray, md: np.ndarray, k: int, sigma: float, n_full: int):
-        """k eigenpairs nearest sigma (shift-invert), vectors expanded to n_full DOFs."""
+    def mass(self, md: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        """Block mass data on the block pattern and the block M (CSR, own sparser pattern)."""
         nb = self.dofs.size
-        kb, mb = kd[self.k_pos], md[self.k_pos]
+        mb = md[self.k_pos]
+        return mb, sp.csr_matrix((mb[self.m_sel], self.indices[self.m_sel], self.m_indptr), shape=(nb, nb))
+
+    def eig(self, kd: np.ndarray, md: np.ndarray, k: int, sigma: float, n_full: int,
+            mass: tuple[np.ndarray, sp.csr_matrix] | None = None):
+        """k eigenpairs nearest sigma (shift-invert), vectors expanded to n_full DOFs.
+
+        ``mass``: ``self.mass(md)`` when already known (M depends on density only)."""
+        nb = self.dofs.size
+        mb, M = self.mass(md) if mass is None else mass
+        kb = kd[self.k_pos]
         # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
         A = sp.csc_matrix((kb - sigma * mb, self.indices, self.indptr), shape=(nb, nb))
-        M = sp.csr_matrix((mb[self.m_sel], self.indices[self.m_sel], self.m_indptr), shape=(nb, nb))
         lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
         op = spla.LinearOperator((nb, nb), matvec=lu.solve, dtype=float)
@@ -602,6 +611,7 @@ class PlateModel:
         cross = self._pat.cross
         self._add_cross = bool(np.any(self._k_add[cross] != 0) or np.any(self._m_add[cross] != 0))
         self._cache: dict = {} if _cache is None else _cache  # mesh-only data, shared by derived models
+        self._mass_memo: dict | None = None  # mass data of the last inertias (see _mass)
 
     # -- construction ---------------------------------------------------
     @classmethod
@@ -688,17 +698,38 @@ class PlateModel:
 
     def matrices(self, params=None, material=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """Global K (N/m) and M (kg), CSR (M on its own, sparser pattern)."""
-        kd, md = self._data(*self.coefficients(params, material))
-        return self._pat.matrix(kd), self._pat.mass_matrix(md)
+        c, inert = self.coefficients(params, material)
+        kd, _ = self._data(c, inert)
+        return self._pat.matrix(kd), self._mass(inert)["M"].copy()
 
     def _data(self, c: np.ndarray, inert: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """K and M data vectors on the common pattern."""
         pat = self._pat
         Kc = (c @ self._Kflat).reshape(6, 6400)   # unit element matrix per scale combo
         kd = pat.scatter @ (pat.type_scales @ Kc).ravel() + self._k_add
-        Mc = np.tensordot(inert, self._Me, 1).ravel()
-        md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
-        return kd, md
+        return kd, self._mass(inert)["md"]
+
+    def _mass(self, inert: np.ndarray) -> dict:
+        """Mass-side data for inertias (I1, I2, I3), memoised for the last inertias
+        (M depends on the density only, fixed during most identifications):
+        ``md`` (data on the common pattern), ``M`` (global CSR) and, filled on
+        demand, ``MR`` (M times the rigid-body vectors), ``G`` (R' M R) and
+        per-block ``(mb, Mb)``."""
+        key = np.asarray(inert, dtype=float).tobytes()
+        memo = self._mass_memo
+        if memo is None or memo["key"] != key:
+            pat = self._pat
+            Mc = np.tensordot(np.asarray(inert, dtype=float), self._Me, 1).ravel()
+            md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
+            md.flags.writeable = False
+            memo = self._mass_memo = {"key": key, "md": md, "M": pat.mass_matrix(md)}
+        return memo
+
+    def _block_mass(self, name: str, inert: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        memo = self._mass(inert)
+        if name not in memo:
+            memo[name] = self._block(name).mass(memo["md"])
+        return memo[name]
 
     # -- rigid body modes --------------------------------------------------
     def rigid_body_vectors(self) -> np.ndarray:
@@ -746,24 +777,26 @@ class PlateModel:
         coupled = (self._add_cross or np.abs(c[6:12]).max() > 1e-10 * np.abs(c[:6]).max() * h
                    or abs(inert[1]) > 1e-10 * inert[0] * h)
         if coupled:
-            lam, vec = self._block("all").eig(kd, md, n_modes + 6 + _SPARE, sigma, n)
+            lam, vec = self._block("all").eig(kd, md, n_modes + 6 + _SPARE, sigma, n,
+                                              self._block_mass("all", inert))
         else:
             # B = 0, I2 = 0: bending (w0, bx, by) and membrane (u0, v0) decouple;
             # 3 rigid modes each. Membrane modes are usually far above.
-            lam, vec = self._block("bending").eig(kd, md, n_modes + 3 + _SPARE, sigma, n)
+            lam, vec = self._block("bending").eig(kd, md, n_modes + 3 + _SPARE, sigma, n,
+                                                  self._block_mass("bending", inert))
             top = np.sort(lam)[min(3 + n_modes, lam.size) - 1]
             km, nm = 6, self._block("membrane").dofs.size
             while True:
-                lam_m, vec_m = self._block("membrane").eig(kd, md, km, sigma, n)
+                lam_m, vec_m = self._block("membrane").eig(kd, md, km, sigma, n,
+                                                           self._block_mass("membrane", inert))
                 if lam_m.max() > top or km >= 0.4 * nm:
                     break
                 km *= 2
             lam, vec = np.concatenate([lam, lam_m]), np.hstack([vec, vec_m])
         k = lam.size
-        M = self._pat.mass_matrix(md)
         order = np.argsort(lam)
         lam, vec = lam[order], vec[:, order]
-        rigid = self._rigid_mask(vec, M)
+        rigid = self._rigid_mask(vec, self._mass(inert))
         if rigid.sum() != 6:
             raise FEError(f"found {int(rigid.sum())} rigid-body modes among the {k} lowest, "
                           "expected exactly 6")
@@ -789,12 +822,16 @@ class PlateModel:
         a = max(self.mesh.length, self.mesh.width)
         return 100.0 * Dmax / (inert[0] * a**4)
 
-    def _rigid_mask(self, vec: np.ndarray, M: sp.csr_matrix) -> np.ndarray:
-        """True for modes whose M-norm lies mostly (> 1/2) in the rigid-body space."""
-        R = self.rigid_body_vectors()
-        G = R.T @ (M @ R)
-        P = (M @ R).T @ vec  # (6, k)
-        content = np.einsum("ik,ik->k", P, np.linalg.solve(G, P))
+    def _rigid_mask(self, vec: np.ndarray, mass: dict) -> np.ndarray:
+        """True for modes whose M-norm lies mostly (> 1/2) in the rigid-body space.
+
+        ``mass``: ``self._mass(inertias)``; M R and R' M R are memoised there."""
+        if "MR" not in mass:
+            R = self.rigid_body_vectors()
+            mass["MR"] = np.asarray(mass["M"] @ R)
+            mass["G"] = R.T @ mass["MR"]
+        P = mass["MR"].T @ vec  # (6, k)
+        content = np.einsum("ik,ik->k", P, np.linalg.solve(mass["G"], P))
         return content > 0.5
 
     # -- mode shapes at points ------------------------------------------------

@@ -272,3 +272,20 @@ def test_sparse_solver_matches_dense_spectrum_with_inplane_modes(lam):
     uv[0::5] = uv[1::5] = True
     share = np.einsum("ik,ij,jk->k", modes.shapes[uv], M.toarray()[np.ix_(uv, uv)], modes.shapes[uv])
     assert np.any(share > 0.9)
+
+
+def test_density_scaling_through_the_mass_memo(cfrp_model, cfrp_modes):
+    """f ~ 1/sqrt(rho) at fixed stiffness; alternating densities on one model
+    (the mass data are memoised per density) must not reuse a stale M."""
+    rho = T300.density
+    f0 = cfrp_modes.frequencies_hz
+    for k in (4.0, 1.0, 0.25, 4.0):
+        f = cfrp_model.solve(10, params={"density": k * rho}).frequencies_hz
+        np.testing.assert_allclose(f, f0 / np.sqrt(k), rtol=1e-9)
+    K, M = cfrp_model.matrices({"density": 4.0 * rho})
+    _, M1 = cfrp_model.matrices()
+    M.data[:] = 0.0   # a returned M is the caller's own copy
+    np.testing.assert_allclose(cfrp_model.matrices({"density": 4.0 * rho})[1].sum(), 4.0 * M1.sum(), rtol=1e-12)
+    # total mass of the plate: translation vector r_x' M r_x
+    r = cfrp_model.rigid_body_vectors()[:, 0]
+    assert r @ (M1 @ r) == pytest.approx(A_CFRP**2 * CFRP.thickness * rho, rel=1e-12)
