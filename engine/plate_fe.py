@@ -47,6 +47,7 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg import eigh as sl_eigh
 
 from .laminate import ABDH, Laminate, Material, transform_inplane, transform_shear
 
@@ -612,6 +613,10 @@ class PlateModel:
         self._add_cross = bool(np.any(self._k_add[cross] != 0) or np.any(self._m_add[cross] != 0))
         self._cache: dict = {} if _cache is None else _cache  # mesh-only data, shared by derived models
         self._mass_memo: dict | None = None  # mass data of the last inertias (see _mass)
+        self._mem_memo: dict | None = None   # last membrane solve (see _membrane_modes)
+        # no added stiffness on the membrane DOFs (the membrane eigenvalue bound needs it)
+        fr = np.repeat(np.arange(len(self._pat.indptr) - 1), np.diff(self._pat.indptr)) % NODE_DOF
+        self._membrane_k_free = not np.any(self._k_add[(fr < 2) & (self._pat.indices % NODE_DOF < 2)])
 
     # -- construction ---------------------------------------------------
     @classmethod
@@ -785,13 +790,7 @@ class PlateModel:
             lam, vec = self._block("bending").eig(kd, md, n_modes + 3 + _SPARE, sigma, n,
                                                   self._block_mass("bending", inert))
             top = np.sort(lam)[min(3 + n_modes, lam.size) - 1]
-            km, nm = 6, self._block("membrane").dofs.size
-            while True:
-                lam_m, vec_m = self._block("membrane").eig(kd, md, km, sigma, n,
-                                                           self._block_mass("membrane", inert))
-                if lam_m.max() > top or km >= 0.4 * nm:
-                    break
-                km *= 2
+            lam_m, vec_m = self._membrane_modes(kd, c, inert, top, sigma, n)
             lam, vec = np.concatenate([lam, lam_m]), np.hstack([vec, vec_m])
         k = lam.size
         order = np.argsort(lam)
@@ -808,6 +807,42 @@ class PlateModel:
             raise FEError("eigen solver returned too few elastic modes")
         rigid_max = float(np.sqrt(np.max(np.abs(lam[rigid]))))
         return Modes(np.sqrt(np.maximum(lam_e, 0.0)) / (2.0 * np.pi), lam_e, vec_e, rigid_max)
+
+    def _membrane_modes(self, kd: np.ndarray, c: np.ndarray, inert: np.ndarray, top: float,
+                        sigma: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Membrane (u0, v0) modes of a decoupled plate: all below ``top`` (omega^2,
+        the highest bending mode wanted) and at least its 3 rigid-body modes.
+
+        The membrane stiffness is linear and positive in the A matrix only, so
+        if A_new - alpha A_old is positive semi-definite every membrane
+        eigenvalue (same M) is at least alpha times the old one (Courant-Fischer).
+        When that bound puts the first elastic membrane mode of the last
+        membrane solve above 1.02 top, that solve's rigid-body pairs (exact
+        null vectors of every K_m, M-normalised for this M) are returned
+        instead of a new solve: none of its elastic modes could be selected.
+        """
+        blk = self._block("membrane")
+        mass = self._block_mass("membrane", inert)
+        A_new = c[[0, 1, 2, 1, 3, 4, 2, 4, 5]].reshape(3, 3)
+        memo = self._mem_memo
+        if memo is not None and memo["mass"] is mass:
+            try:
+                alpha = float(sl_eigh(A_new, memo["A"], eigvals_only=True)[0])
+            except np.linalg.LinAlgError:
+                alpha = 0.0
+            if alpha * memo["lam_elastic"] > 1.02 * top:
+                return memo["lam_rigid"], memo["vec_rigid"]
+        km, nm = 6, blk.dofs.size
+        while True:
+            lam_m, vec_m = blk.eig(kd, self._mass(inert)["md"], km, sigma, n, mass)
+            if lam_m.max() > top or km >= 0.4 * nm:
+                break
+            km *= 2
+        order = np.argsort(lam_m)
+        if self._membrane_k_free and order.size > 3:
+            self._mem_memo = {"mass": mass, "A": A_new, "lam_elastic": float(lam_m[order[3]]),
+                              "lam_rigid": lam_m[order[:3]], "vec_rigid": vec_m[:, order[:3]]}
+        return lam_m, vec_m
 
     def _block(self, name: str) -> _Block:
         key = "block_" + name

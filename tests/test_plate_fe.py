@@ -289,3 +289,29 @@ def test_density_scaling_through_the_mass_memo(cfrp_model, cfrp_modes):
     # total mass of the plate: translation vector r_x' M r_x
     r = cfrp_model.rigid_body_vectors()[:, 0]
     assert r @ (M1 @ r) == pytest.approx(A_CFRP**2 * CFRP.thickness * rho, rel=1e-12)
+
+
+def test_membrane_solve_reuse_matches_dense_spectrum():
+    """A thin plate first (membrane modes far above: later solves may reuse its
+    membrane rigid modes), then constants that bring in-plane modes among the
+    lowest (the eigenvalue bound must force a new membrane solve): every solve
+    on the one model equals the dense generalised spectrum."""
+    mat = Material(E1=136.7e9, E2=9.0e9, nu12=0.30, G12=5.0e9, G13=5.08e9, G23=3.16e9,
+                   density=1560.0, name="T300")
+    lam = Laminate((Ply(mat, 0.0, 0.01), Ply(mat, 90.0, 0.01), Ply(mat, 0.0, 0.01)))
+    model = PlateModel.build(lam, 0.3, 0.3, (3, 3))
+    seq = [{}, {"E1": 120e9}, {"E1": 130e9, "G13": 4e9}, {"E1": 4e9, "E2": 3e9, "G12": 0.05e9},
+           {"E1": 150e9}, {"E1": 4e9, "E2": 3e9, "G12": 0.05e9}]
+    shares = []
+    for p in seq:
+        K, M = model.matrices(p)
+        w = sl.eigh(K.toarray(), M.toarray(), eigvals_only=True)
+        modes = model.solve(8, params=p)
+        np.testing.assert_allclose(modes.omega2, w[6:14], rtol=1e-8, err_msg=str(p))
+        assert modes.rigid_max_omega < 1e-3 * np.sqrt(modes.omega2[0])
+        uv = np.zeros(model.mesh.n_dof, bool)
+        uv[0::5] = uv[1::5] = True
+        shares.append(np.einsum("ik,ij,jk->k", modes.shapes[uv], M.toarray()[np.ix_(uv, uv)],
+                                modes.shapes[uv]).max())
+    assert shares[3] > 0.9 and shares[5] > 0.9   # in-plane modes among the lowest there
+    assert max(shares[:3]) < 0.1                  # and not in the stiff cases
