@@ -900,18 +900,20 @@ class PlateModel:
         dc = L @ dq[:6]                                 # (21, P)
         dI = np.outer(R, dq[6])                         # (3, P)
         pat = self._pat
-        phi = modes.shapes[self.mesh.element_dofs]      # (ne, 80, m)
+        phi = modes.shapes[self.mesh.element_dofs].transpose(2, 0, 1)   # (m, ne, 80)
+        m = phi.shape[0]
         nt = pat.type_scales.shape[0]
-        if nt == 1:
-            S = np.einsum("eam,ebm->mab", phi, phi, optimize=True)[None]
-        else:
-            S = np.zeros((nt, phi.shape[2], 80, 80))
-            for t in range(nt):
-                ph = phi[pat.elem_type == t]
-                S[t] = np.einsum("eam,ebm->mab", ph, ph, optimize=True)
-        Sc = np.tensordot(pat.type_scales, S, axes=(0, 0))            # (6, m, 80, 80)
-        eK = np.einsum("pmab,piab->mi", Sc, self._Ke, optimize=True)  # (m, 21)
-        eM = np.einsum("mab,iab->mi", Sc[0], self._Me, optimize=True) # (m, 3)
+        # S[t, mode] = sum over elements of type t of phi_e phi_e' (80 x 80), by matmul
+        S = np.empty((nt, m, 80, 80))
+        for t in range(nt):
+            ph = phi[:, pat.elem_type == t] if nt > 1 else phi
+            np.matmul(ph.transpose(0, 2, 1), ph, out=S[t])
+        Sc = (pat.type_scales.T @ S.reshape(nt, -1)).reshape(6, m, 6400)  # per scale combo
+        if "Ke_rows" not in self._cache:   # (6, 6400, 21) reference K per combo, 21 columns
+            self._cache["Ke_rows"] = np.ascontiguousarray(self._Ke.reshape(6, 21, 6400).transpose(0, 2, 1))
+        Kr = self._cache["Ke_rows"]
+        eK = sum(Sc[p] @ Kr[p] for p in range(6))                       # (m, 21)
+        eM = Sc[0] @ self._Me.reshape(3, 6400).T                        # (m, 3)
         return eK @ dc - modes.omega2[:, None] * (eM @ dI)
 
 
