@@ -507,7 +507,8 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
     over ``theta`` (log-parameters by default). ``prior`` is a :class:`Prior`,
     a number (std of log p, centred on the start; default 1.0, i.e. weak) or
     None. ``max_step`` bounds each step in theta (0.7 ~ factor 2); ``mu0`` is
-    the initial Marquardt damping (relative to diag(J^T J)).
+    the initial Marquardt damping (relative to diag(J^T J)), updated by
+    Nielsen's rule (gain ratio; factor 2, 4, 8, ... on rejected trials).
     Converged when the undamped Gauss-Newton step is below ``xtol`` in every
     coordinate or would lower the chi^2 by less than ``dtol`` (then the
     remaining error is below sqrt(dtol) standard deviations). With ``continuation`` and a prior weaker than 0.3 (or none),
@@ -578,6 +579,7 @@ def _lm(prob: _Problem, theta: np.ndarray, tp: np.ndarray, w: np.ndarray, xtol: 
     if not history:
         history.append({"iteration": 0, "cost": float(cost), "params": coords.as_dict(theta)})
     mu, stalled, stall_refreshed = mu0, 0, False
+    nu = 2.0
     for it in range(1, max_iter + 1):
         A, g = J.T @ J, J.T @ r
         dmax = max(float(np.diag(A).max()), 1e-300)
@@ -648,7 +650,8 @@ def _lm(prob: _Problem, theta: np.ndarray, tp: np.ndarray, w: np.ndarray, xtol: 
             if c_new <= cost:
                 accepted = True
                 break
-            mu *= 4.0
+            mu *= nu           # Nielsen: growing factor over consecutive failures
+            nu *= 2.0
         if not accepted:
             small = float(np.max(np.abs(gn))) < 1e3 * xtol or negligible
             return theta, small, it, "no decrease of the misfit in 40 damping trials"
@@ -656,8 +659,15 @@ def _lm(prob: _Problem, theta: np.ndarray, tp: np.ndarray, w: np.ndarray, xtol: 
             stalled += 1
         else:
             stalled, stall_refreshed = 0, False
+        # Nielsen's damping update from the gain ratio rho (actual / predicted
+        # decrease): a good quadratic model (rho ~ 1) lowers mu by up to 3, a
+        # poor one keeps it; fewer rejected trials (model solves) than a fixed
+        # /10 after every success, which oscillates in curved valleys
+        pred = -(g @ step) - 0.5 * step @ (A @ step)
+        rho = (cost - c_new) / pred if pred > 0 else 0.0
+        mu = max(mu * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 1e-12)
+        nu = 2.0
         theta, cost = trial, c_new
-        mu = max(mu / 10.0, 1e-12)
         history.append({"iteration": it0 + it, "cost": float(cost), "params": coords.as_dict(theta),
                         "step": float(np.max(np.abs(step))), "mu": float(mu)})
         if callback:

@@ -193,3 +193,24 @@ def test_uncertainty_is_calibrated_on_nonlinear_model():
         hits += np.abs(est.values - [4.0, 1.3]) <= 2 * est.std
     # P(within 2 sd) = 0.9545; with n=200 the 3-sigma band is [0.91, 1.0]
     assert np.all(hits / n >= 0.91)
+
+
+def test_lm_follows_the_curved_rosenbrock_valley():
+    """Rosenbrock's least-squares problem r = (10 (y - x^2), 1 - x) from the
+    classic start (-1.2, 1): the damping must carry the fit along the curved
+    valley to the exact minimum (1, 1). Parameters a = x + 2, b = y + 2 (kept
+    positive), with an analytic Jacobian and with finite differences."""
+    def predict(p):
+        x, y = p["a"] - 2.0, p["b"] - 2.0
+        return np.array([10.0 * (y - x * x), 1.0 - x])
+
+    def jac(p, nm):
+        x = p["a"] - 2.0
+        d = {"a": np.array([-20.0 * x, -1.0]), "b": np.array([10.0, 0.0])}
+        return predict(p), np.column_stack([d[n] for n in nm])
+
+    for j in (jac, None):
+        blk = DataBlock("rosenbrock", np.zeros(2), np.ones(2), predict, j)
+        est = estimate([blk], ("a", "b"), {"a": 0.8, "b": 3.0}, prior=None, max_iter=200)
+        assert est.converged
+        np.testing.assert_allclose(est.values, [3.0, 3.0], atol=1e-5)
