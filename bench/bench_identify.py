@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import resource
 import statistics
 import subprocess
 import sys
@@ -108,9 +109,17 @@ def main() -> None:
         nominal = {n: truth[n] for n in names}
         starts = random_starts(nominal, names, n_st, spread=0.5, seed=1,
                                problem=problem_from_features(d, specimen=spec, modal_model=model))
+        load0 = os.getloadavg()[0]
+        cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t = time.perf_counter()
         res = multi_start(d, starts, names, specimen=spec, max_workers=2, method=method)
         wall = time.perf_counter() - t
+        cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)   # the (finished) worker processes
+        cpu = (cpu1.ru_utime + cpu1.ru_stime) - (cpu0.ru_utime + cpu0.ru_stime)
+        busy = sum(r.get("seconds", 0.0) for r in res)   # estimator wall time summed over starts
+        print(f"  ({label}: load {load0:.1f} -> {os.getloadavg()[0]:.1f}; worker CPU {cpu:.1f} s "
+              f"(idle-machine wall ~ CPU / 2 = {cpu / 2:.1f} s); {busy:.1f} s wall summed over starts; "
+              f"iterations {sum(r.get('iterations', 0) for r in res)})")
         conv = [r for r in res if r.get("converged")]
         good = [r for r in conv if r["chi2_per_point"] < 1.0]
         dev = max((abs(r["values"][n] / truth[n] - 1) for r in good for n in well), default=float("nan"))
