@@ -131,7 +131,7 @@ class GapView(QWidget):
         effects = [e for e in (res.get("effects") or []) if isinstance(e, dict)]
         self.table.setRowCount(len(effects))
         for i, e in enumerate(effects):
-            cells = [str(i + 1), str(e.get("name")), f"{_f(e.get('magnitude'))} {e.get('unit', '')}",
+            cells = [str(i + 1), str(e.get("name")), f"{_f(e.get('magnitude'))} {'' if e.get('unit') == '1' else e.get('unit', '')}".strip(),
                      _f(e.get("gap_after")), _f(e.get("score")), "yes" if e.get("detectable", True) else "no"]
             for j, c in enumerate(cells):
                 item = QTableWidgetItem(c)
