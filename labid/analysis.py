@@ -142,17 +142,31 @@ def modal_features(records: Sequence[Record], settings: AnalysisSettings = Analy
                  f"{'H1 (force recorded)' if spec.kind == 'frf' else 'auto-spectra'}, {len(accs)} channel(s)")
     if not peaks:
         return None, spec, peaks
+    points = ([[float(c.x), float(c.y)] for c in accs]
+              if all(c.x is not None and c.y is not None for c in accs) else None)
+    return modal_table(peaks, points), spec, peaks
+
+
+def modal_table(peaks: Sequence[modal.Peak], points: Sequence[Sequence[float]] | None = None) -> dict | None:
+    """The features' ``modal`` table for ``peaks`` (None when there are none).
+
+    sigma_hz has a floor of 1e-5 of the frequency. ``points``: the (x, y) of the
+    channels in each peak's shape, in m; mode shapes are included when every
+    peak has one value per point.
+    """
+    if not peaks:
+        return None
     feats: dict[str, Any] = {
-        "frequencies_hz": [p.frequency_hz for p in peaks],
+        "frequencies_hz": [float(p.frequency_hz) for p in peaks],
         "sigma_hz": [max(p.sigma_hz if math.isfinite(p.sigma_hz) else 0.0, 1e-5 * p.frequency_hz)
                      for p in peaks],
-        "damping_ratio": [p.damping_ratio for p in peaks],
-        "confidence": [p.confidence for p in peaks],
+        "damping_ratio": [float(p.damping_ratio) for p in peaks],
+        "confidence": [float(p.confidence) for p in peaks],
     }
-    if all(c.x is not None and c.y is not None for c in accs):
-        feats["mode_shapes"] = {"points": [[float(c.x), float(c.y)] for c in accs],
-                                "values": [list(p.shape) for p in peaks]}
-    return feats, spec, peaks
+    if points and all(len(p.shape) == len(points) for p in peaks):
+        feats["mode_shapes"] = {"points": [list(map(float, xy)) for xy in points],
+                                "values": [[float(v) for v in p.shape] for p in peaks]}
+    return feats
 
 
 # --------------------------------------------------------------------------- waves
@@ -423,7 +437,8 @@ def analyze_store(store: RunStore, settings: AnalysisSettings = AnalysisSettings
     return Analysis(validate_features(doc, src), spectrum, peaks, curves, arrivals, notes)
 
 
-def _results(an: Analysis, text: str, settings: AnalysisSettings) -> dict:
+def analysis_results(an: Analysis, text: str, settings: AnalysisSettings) -> dict:
+    """What ``/results/analysis`` holds for an analysis whose features JSON is ``text``."""
     res: dict[str, Any] = {"features": {"json": text}, "notes": list(an.notes) or ["(none)"]}
     if an.spectrum is not None:
         sp = an.spectrum
@@ -457,11 +472,18 @@ def analyze_run(run: str | Path, out: str | Path | None = None,
     out = Path(out) if out is not None else run.with_name(run.stem + ".features.json")
     with RunStore(run, "r") as st:
         an = analyze_store(st, settings)
+    store_analysis(run, an, out, settings)
+    return an.features
+
+
+def store_analysis(run: str | Path, an: Analysis, out: str | Path,
+                   settings: AnalysisSettings = AnalysisSettings()) -> str:
+    """Write the features JSON ``out`` and ``/results/analysis`` of ``run``; returns the JSON text."""
     text = features_text(an.features, str(out))
     try:
-        out.write_text(text)
+        Path(out).write_text(text)
     except OSError as e:
         raise UserError(f"cannot write: {e.strerror}", file=str(out)) from None
     with RunStore(run, "a") as st:
-        st.write_group("analysis", _results(an, text, settings))
-    return an.features
+        st.write_group("analysis", analysis_results(an, text, settings))
+    return text

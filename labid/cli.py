@@ -14,11 +14,10 @@ import json
 import sys
 import traceback
 from pathlib import Path
-from typing import Any
 
-import numpy as np
 
 from .errors import UserError
+from .jsonio import to_jsonable
 
 COMMANDS = ("dispersion", "modes", "acquire", "analyze", "identify", "diagnose",
             "demo", "report", "gui")
@@ -30,25 +29,9 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def _to_jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _to_jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
-
-
 def write_json(result: dict, path: str) -> None:
     """Write a result as JSON to ``path``; '-' is standard output. NaN -> null."""
-    text = json.dumps(_to_jsonable(result), indent=2, allow_nan=False)
+    text = json.dumps(to_jsonable(result), indent=2, allow_nan=False)
     if path == "-":
         sys.stdout.write(text + "\n")
     else:

@@ -9,7 +9,6 @@
 """
 from __future__ import annotations
 
-import json
 import math
 import time
 from pathlib import Path
@@ -59,7 +58,6 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     """Run the demo into ``out_dir``; return the JSON-ready summary."""
     from .acquisition import AcquisitionSession
     from .analysis import analyze_run
-    from .cli import _to_jsonable
     from .runstore import RunStore
     from .specimen import load_specimen
     from . import identification as idn
@@ -108,9 +106,7 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
         step(f"    {ds}: {'converged' if est.converged else 'NOT converged'} in {est.seconds:.1f} s")
     with RunStore(run, "a") as store:
         for ds, res in results.items():
-            store.write_group("identification" if ds == "combined" else f"identification_{ds}",
-                              {"json": json.dumps(_to_jsonable(res))} | _to_jsonable(
-                                  {k: res[k] for k in ("parameters", "converged", "residual")}))
+            store.write_result("identification" if ds == "combined" else f"identification_{ds}", res)
 
     step("4/5 identified vs true constants")
     table = format_table(truth, results)
@@ -121,8 +117,7 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     gap = run_diagnosis(features, base_dir=out, src=str(features_path))
     plot_gap(gap, out / "gap.png")
     with RunStore(run, "a") as store:
-        store.write_group("diagnosis", {"json": json.dumps(_to_jsonable(gap))} | _to_jsonable(
-            {k: gap[k] for k in ("gap", "verdict")}))
+        store.write_result("diagnosis", gap)
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
     from .report import write_report
     html = write_report(run, out / "report.html")

@@ -47,6 +47,7 @@ import numpy as np
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
 from .errors import UserError
+from .jsonio import to_jsonable
 
 SCHEMA = 1
 KINDS = ("hammer", "wave")
@@ -489,6 +490,16 @@ class RunStore:
             del f[full]
         _write_tree(f.require_group(full), data)
         f.flush()
+
+    def write_result(self, path: str, data: dict) -> None:
+        """Write a result (nested dict) under ``/results/<path>`` twice over: its arrays and
+        scalars where HDF5 can hold them, and a plain-JSON copy in ``json`` (which
+        readers prefer); only the JSON copy when the structure does not fit HDF5."""
+        text = json.dumps(to_jsonable(data), allow_nan=False)
+        try:
+            self.write_group(path, {**data, "json": text})
+        except (ValueError, TypeError):
+            self.write_group(path, {"json": text})
 
     def read_group(self, path: str) -> dict:
         """The nested dict written by ``write_group`` (arrays as numpy, strings as str)."""

@@ -208,3 +208,21 @@ def test_writer_killed_outside_swmr_mode_is_readable_and_repaired(tmp_path):
         assert s.append_shot(record(1), "hammer") == "hammer_0002"
     with h5py.File(p, "r") as f:                 # repaired: opens without help
         assert f["shots/hammer/committed"].shape == (2,)
+
+
+def test_write_result_keeps_a_json_copy_even_when_hdf5_cannot_hold_the_structure(tmp_path):
+    import json
+    nested = {"parameters": {"E": {"value": 71.0e9, "std": np.float64(np.nan)}},
+              "effects": [{"name": "sensor_mass", "magnitude": 0.003}],   # list of dicts: JSON only
+              "converged": True}
+    with RunStore(tmp_path / "r.h5", "a") as st:
+        st.write_result("identification", {"values": np.array([1.0, 2.0]), "converged": True})
+        st.write_result("diagnosis", nested)
+    with RunStore(tmp_path / "r.h5", "r") as st:
+        ident = st.read_group("identification")
+        diag = st.read_group("diagnosis")
+    np.testing.assert_array_equal(ident["values"], [1.0, 2.0])          # structured part
+    assert json.loads(ident["json"]) == {"values": [1.0, 2.0], "converged": True}
+    doc = json.loads(diag["json"])
+    assert doc["effects"][0] == {"name": "sensor_mass", "magnitude": 0.003}
+    assert doc["parameters"]["E"]["std"] is None                       # NaN -> null, valid JSON

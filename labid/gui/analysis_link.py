@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 
 #: names the analysis module must define for the panel to use it
-ANALYSIS_API: tuple[str, ...] = ("analyze_store", "modal_features", "AnalysisSettings", "_results")
+ANALYSIS_API: tuple[str, ...] = ("analyze_store", "modal_features", "AnalysisSettings", "store_analysis",
+                                 "modal_table")
 
 
 def features_path(run: str) -> Path:
@@ -24,18 +25,13 @@ def features_path(run: str) -> Path:
 
 def analysis_job(link, run: str, temperature_c, progress, should_stop):
     """Background part: analyse the run file, store the results; returns the Analysis."""
-    from ..features import features_text
     from ..runstore import RunStore
     settings = link.AnalysisSettings()
     with RunStore(run, "r") as st:
         an = link.analyze_store(st, settings)
     if temperature_c is not None and math.isfinite(temperature_c):
         an.features.setdefault("rig", {}).setdefault("temperature_c", float(temperature_c))
-    out = features_path(run)
-    text = features_text(an.features, str(out))
-    out.write_text(text)
-    with RunStore(run, "a") as st:
-        st.write_group("analysis", link._results(an, text, settings))
+    link.store_analysis(run, an, features_path(run), settings)
     return an
 
 
@@ -51,19 +47,10 @@ def analysis_summary(an) -> str:
     return f"{n_modes} resonances, {n_w} group-velocity points"
 
 
-def modal_section(peaks, old: dict | None) -> dict | None:
+def modal_section(link, peaks, old: dict | None) -> dict | None:
     """The features' ``modal`` table for (edited) peaks, as the analysis writes it."""
-    if not peaks:
-        return None
-    out = {"frequencies_hz": [float(p.frequency_hz) for p in peaks],
-           "sigma_hz": [max(p.sigma_hz if math.isfinite(p.sigma_hz) else 0.0, 1e-5 * p.frequency_hz)
-                        for p in peaks],
-           "damping_ratio": [float(p.damping_ratio) for p in peaks],
-           "confidence": [float(p.confidence) for p in peaks]}
     ms = (old or {}).get("mode_shapes")
-    if ms and all(len(p.shape) == len(ms["points"]) for p in peaks):
-        out["mode_shapes"] = {"points": ms["points"], "values": [[float(v) for v in p.shape] for p in peaks]}
-    return out
+    return link.modal_table(peaks, ms["points"] if ms else None)
 
 
 def save_picks(link, run: str, peaks) -> dict:
@@ -76,7 +63,7 @@ def save_picks(link, run: str, peaks) -> dict:
         except KeyError:
             raise ValueError("the run has not been analysed yet") from None
     doc = json.loads(res["features"]["json"])
-    modal = modal_section(peaks, doc.get("modal"))
+    modal = modal_section(link, peaks, doc.get("modal"))
     if modal is None:
         doc.pop("modal", None)
     else:

@@ -206,23 +206,18 @@ class MainWindow(QMainWindow):
 
     def store_results(self, name: str, data: dict) -> bool:
         """Write ``data`` under /results/<name> (structured + a JSON copy)."""
-        from ..cli import _to_jsonable
+        from ..jsonio import to_jsonable
         from ..runstore import RunStore
-        doc = _to_jsonable(data)
-        text = json.dumps(doc, allow_nan=True)
         if not self.run_path:
-            self._mem_results[name] = json.loads(text)
+            self._mem_results[name] = to_jsonable(data)
             self.message(f"{name}: kept in memory only (no run file)", error=True)
             return False
         self._mem_results.pop(name, None)
         try:
             with RunStore(self.run_path, "a") as store:
-                try:
-                    store.write_group(name, {**data, "json": text})
-                except (ValueError, TypeError):
-                    store.write_group(name, {"json": text})
+                store.write_result(name, data)
         except (UserError, OSError) as e:
-            self._mem_results[name] = json.loads(text)
+            self._mem_results[name] = to_jsonable(data)
             self.message(f"{name}: not saved in the run file: {e}", error=True)
             return False
         return True
