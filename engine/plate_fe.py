@@ -673,6 +673,29 @@ class PlateModel:
             add += _point_matrix(self.mesh, self._pat, row[0], row[1], (0, 0, row[2], 0, 0))
         return self._derived(k_add=add)
 
+    def with_stiffness_loss(self, x0: float, y0: float, size: float, loss: float,
+                            params: Mapping[str, float] | None = None,
+                            material: str | None = None) -> "PlateModel":
+        """A local stiffness loss (damage, a soft patch): inside the square of side ``size``
+        (m) centred at (x0, y0), the stiffness drops by the fraction ``loss`` (each element
+        by ``loss`` times its area fraction inside the square). The loss is that of the
+        stiffness at ``params`` and stays fixed when the model is solved with others."""
+        if not 0.0 <= loss <= 1.0 or not size > 0:
+            raise FEError(f"stiffness loss {loss!r} over {size!r} m: expected 0 <= loss <= 1 and size > 0")
+        c, _ = self.coefficients(params, material)
+        pat = self._pat
+        Kc = np.tensordot(c, self._Ke, axes=(0, 1)).reshape(self._Ke.shape[0], -1)
+        Ke_type = pat.type_scales @ Kc                       # (n_types, element matrix)
+        xe, ye = self.mesh.xe, self.mesh.ye
+        ox = np.clip(np.minimum(xe[1:], x0 + size / 2) - np.maximum(xe[:-1], x0 - size / 2), 0, None) / np.diff(xe)
+        oy = np.clip(np.minimum(ye[1:], y0 + size / 2) - np.maximum(ye[:-1], y0 - size / 2), 0, None) / np.diff(ye)
+        add = self._k_add.copy()
+        for ey in np.flatnonzero(oy):
+            for ex in np.flatnonzero(ox):
+                e = ey * self.mesh.nx + ex
+                np.add.at(add, pat.elem_pos[e], -loss * ox[ex] * oy[ey] * Ke_type[pat.elem_type[e]])
+        return self._derived(k_add=add)
+
     # -- parameters -----------------------------------------------------
     def _material_name(self, material: str | None) -> str:
         if material is None:

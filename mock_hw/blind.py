@@ -93,28 +93,6 @@ def _shape_points() -> np.ndarray:
     return np.column_stack([X.ravel(), Y.ravel()])
 
 
-def _soft_patch_model(model, params, x0: float, y0: float, size: float, loss: float):
-    """PlateModel whose stiffness inside the square drops by ``loss`` (each element by
-    ``loss`` times the fraction of its area inside the square).
-
-    Uses the model's precomputed parts (element stiffness = combination of the
-    unit element matrices), a test-generator hook outside the diagnoser's library.
-    """
-    c, _ = model.coefficients(params)
-    pat = model._pat
-    Kc = np.tensordot(c, model._Ke, axes=(0, 1)).reshape(6, 6400)
-    Ke_type = pat.type_scales @ Kc                       # (n_types, 6400)
-    xe, ye = model.mesh.xe, model.mesh.ye
-    ox = np.clip(np.minimum(xe[1:], x0 + size / 2) - np.maximum(xe[:-1], x0 - size / 2), 0, None) / np.diff(xe)
-    oy = np.clip(np.minimum(ye[1:], y0 + size / 2) - np.maximum(ye[:-1], y0 - size / 2), 0, None) / np.diff(ye)
-    add = model._k_add.copy()
-    for ey in np.flatnonzero(oy):
-        for ex in np.flatnonzero(ox):
-            e = ey * model.mesh.nx + ex     # element loses loss x (overlapped area fraction)
-            np.add.at(add, pat.elem_pos[e], -loss * ox[ex] * oy[ey] * Ke_type[pat.elem_type[e]])
-    return model._derived(k_add=add)
-
-
 def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
               wave_sets=WAVE_SETS, mesh=None) -> BlindCase:
     """Draw a case from ``seed`` (``kind`` forces the condition; see KINDS).
@@ -155,7 +133,7 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
         plate_model = PlateModel.build(true_lam, length, width, mesh)
         if kind == "soft_patch":
             x0, y0 = rng.uniform(0.08, 0.25, size=2)
-            plate_model = _soft_patch_model(plate_model, truth, x0, y0, 0.06, mag)
+            plate_model = plate_model.with_stiffness_loss(x0, y0, 0.06, mag, truth)
     safe_order = None
     if outside:
         from engine.safe import default_discretisation

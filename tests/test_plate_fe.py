@@ -315,3 +315,16 @@ def test_membrane_solve_reuse_matches_dense_spectrum():
                                 modes.shapes[uv]).max())
     assert shares[3] > 0.9 and shares[5] > 0.9   # in-plane modes among the lowest there
     assert max(shares[:3]) < 0.1                  # and not in the stiff cases
+
+
+def test_stiffness_loss_over_the_whole_plate_scales_frequencies_by_sqrt():
+    """A loss L over every element scales K by (1 - L): every frequency by sqrt(1 - L);
+    a local loss lowers frequencies, never raises them (Rayleigh quotient)."""
+    from labid.specimen import load_specimen
+    spec = load_specimen("cfrp")
+    model = PlateModel.build(spec.laminate, spec.length, spec.width)
+    f0 = model.solve(6).frequencies_hz
+    whole = model.with_stiffness_loss(spec.length / 2, spec.width / 2, 2 * spec.length, 0.3)
+    np.testing.assert_allclose(whole.solve(6).frequencies_hz, f0 * np.sqrt(0.7), rtol=1e-8)
+    local = model.with_stiffness_loss(0.1, 0.1, 0.06, 0.5).solve(6).frequencies_hz
+    assert np.all(local <= f0 * (1 + 1e-9)) and np.any(local < f0 * (1 - 1e-4))
