@@ -54,18 +54,17 @@ def load_run(path: str | Path, max_shots: int = 20) -> RunData:
     from .runstore import RunStore
     with RunStore(path, "r") as st:
         rd = RunData(str(path), st.specimen_toml(), st.rig_toml())
-        rd.attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in st._f.attrs.items()}
+        rd.attrs = st.attributes()
         rd.counts = {k: st.n_shots(k) for k in ("hammer", "wave")}
         if rd.counts["hammer"] and max_shots:
-            rd.hammer = st.shots("hammer")[:max_shots]
+            rd.hammer = st.shots("hammer", limit=max_shots)
         if rd.counts["wave"] and max_shots:
-            rd.wave = st.shots("wave")[:max_shots]
-        if "results" in st._f:
-            for name in st._f["results"]:
-                try:
-                    rd.results[name] = decode_group(st.read_group(name))
-                except (KeyError, ValueError, OSError):
-                    continue
+            rd.wave = st.shots("wave", limit=max_shots)
+        for name in st.result_names():
+            try:
+                rd.results[name] = decode_group(st.read_group(name))
+            except (KeyError, ValueError, OSError):
+                continue
     return rd
 
 

@@ -325,6 +325,14 @@ class RunStore:
     def rig_toml(self) -> str:
         return _text(self._f["config/rig_toml"][()]) if "config/rig_toml" in self._f else ""
 
+    def attributes(self) -> dict[str, Any]:
+        """The file's root attributes (schema version, NeXus class, software), strings decoded."""
+        return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in self._f.attrs.items()}
+
+    def result_names(self) -> list[str]:
+        """Names of the groups under ``/results`` (``write_group``/``write_result``)."""
+        return list(self._f["results"]) if "results" in self._f else []
+
     # -- shots ---------------------------------------------------------
     def declare(self, kind: str, channels: tuple[ChannelConfig, ...], timing: Timing,
                 trigger: Trigger | None) -> None:
