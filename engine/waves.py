@@ -223,7 +223,8 @@ class Arrivals:
     """Arrival time of each analysis frequency (NaN where rejected).
 
     times_s: arrival times on the record's time axis.
-    sigma_s: standard uncertainty of each time (resolution / sqrt(2 SNR)).
+    sigma_s: standard uncertainty of each time (w^2 / sigma_t / sqrt(2 SNR), w = max(sigma_t,
+        the picked packet's energy time-std from the curvature of log|W|)).
     snr_db: scalogram peak over the noise level at that frequency.
     inst_freq_hz: instantaneous frequency of W at the arrival.
     valid: accepted (inside the gate, enough energy, no leakage from other frequencies).
@@ -286,6 +287,7 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
     noise = np.full(nf, np.nan)
     reason = [""] * nf
     tstd = wavelet.time_std_s(freqs)
+    width = np.zeros(nf)  # energy time-std of the picked packet, from the curvature of log|W|
     if noise_rms is not None:
         noise = np.broadcast_to(np.asarray(noise_rms, float), (nf,)).copy()
     for i in range(nf):
@@ -308,6 +310,8 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
         la, lb, lc = np.log(np.maximum(A[i, k - 1:k + 2], tiny))
         den = la - 2 * lb + lc
         d = 0.5 * (la - lc) / den if den < 0 else 0.0
+        # log|W| ~ -t^2 / (2 s_a^2) near a Gaussian peak; energy std = s_a / sqrt(2)
+        width[i] = 1.0 / (fs_hz * np.sqrt(-2.0 * den)) if den < 0 else 0.0
         d = float(np.clip(d, -0.5, 0.5))
         times[i] = t[k] + d / fs_hz
         peak[i] = np.exp(lb - 0.25 * (la - lc) * d)
@@ -343,7 +347,11 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
             valid[i] = False
     snr_lin = np.where(np.isfinite(snr), 10 ** (np.minimum(snr, 200) / 10), np.inf)
     with np.errstate(divide="ignore"):
-        sigma = np.sqrt((tstd / np.sqrt(2 * snr_lin)) ** 2 + (1.0 / (fs_hz * np.sqrt(12)) / 10) ** 2)
+        # a packet longer than the wavelet (a broad source pulse seen through a short
+        # wavelet) has a flatter maximum (curvature ~ 1/width^2) while the noise in |W|
+        # varies on the wavelet's scale: the peak moves by ~ width^2 / tstd / sqrt(2 SNR)
+        teff = np.maximum(tstd, width) ** 2 / tstd
+        sigma = np.sqrt((teff / np.sqrt(2 * snr_lin)) ** 2 + (1.0 / (fs_hz * np.sqrt(12)) / 10) ** 2)
     return Arrivals(freqs, times, sigma, snr, finst, valid, tuple(reason), wavelet)
 
 

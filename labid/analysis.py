@@ -63,9 +63,10 @@ class AnalysisSettings:
     min_wave_snr_db: reject arrivals weaker than this over the pre-trigger noise.
     gate_margin: relative velocity margin of the gates around the nominal SAFE curves.
     echo_margin: how much faster than nominal an edge echo may travel (it closes the gate).
-    report_s0: put the S0 curve in the features too (it is always measured and stored in
-        the run): off by default, because on simulated records S0 picks were found 1-7 %
-        fast with a stated sigma of 1-3 % (weak S0 close to the source time).
+    report_s0: put the S0 curve in the features too (it is always measured, with a wavelet
+        of bandwidth B/4, and stored in the run): off by default; the A0 tail that biased
+        it 1-7 % is gone (docs/wavelet-bias.md), but the short wavelet leaves about one
+        independent point and the low end's sigma is still small by up to ~2.
     """
 
     modal_fmax_hz: float | None = None
@@ -317,15 +318,21 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
                                             gate_s=gates(ws, mode, wl) if ws is not None else None,
                                             noise_rms=_noise_rms(x, pre, fs, freqs, wl),
                                             min_snr_db=settings.min_wave_snr_db)
-                    return waves.correct_dispersion_bias(a) if settings.assign == "instantaneous" else a
+                    # S0 (nearly flat below the knee): no curvature to correct; a cubic fitted
+                    # to its noisy delays would only add its noise
+                    return waves.correct_dispersion_bias(a) if settings.assign == "instantaneous" \
+                        and mode == "A0" else a
+                # S0 is flat below the knee: the nominal frequency is as good, and the
+                # reassigned one of a short wavelet drifts with the source spectrum's slope
+                assign = settings.assign if mode == "A0" else "nominal"
                 a_far = arr(far.channel, far)
                 if force is not None:
-                    g = waves.group_velocity(a_far, far.distance_m, arr(force.name, None), assign=settings.assign)
+                    g = waves.group_velocity(a_far, far.distance_m, arr(force.name, None), assign=assign)
                 elif near is not None:
                     g = waves.group_velocity(a_far, far.distance_m, arr(near.channel, near),
-                                             near_distance_m=near.distance_m, assign=settings.assign)
+                                             near_distance_m=near.distance_m, assign=assign)
                 else:
-                    g = waves.group_velocity(a_far, far.distance_m, source_time_s=0.0, assign=settings.assign)
+                    g = waves.group_velocity(a_far, far.distance_m, source_time_s=0.0, assign=assign)
                 shot_curves.append(g)
                 first = first or a_far
             return _combine(shot_curves), first
@@ -346,12 +353,17 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
                 notes.append(f"direction {direction:g} deg: {wl0.name} resolves too few A0 frequencies "
                              f"({dict((c.name, n) for c, n in tried)}); used {wl.name}")
         for mode in ("A0", "S0"):
-            gv, first_arr = measure(mode, wl, recs)
+            # S0 through a wavelet twice as short (B / 4): under a normal force S0 is ~100 x
+            # weaker than A0 and the tail of A0 in a cmor2-C scalogram shifted its maximum
+            # by several % (docs/wavelet-bias.md, "S0 next to a strong A0"); S0 is nearly
+            # non-dispersive below the knee, so the coarser frequency resolution costs nothing
+            wm = wl if mode == "A0" else waves.Wavelet(wl.bandwidth / 4, wl.center)
+            gv, first_arr = measure(mode, wm, recs)
             # centre-frequency sweep (docs/wavelet-bias.md): the same records through a
             # wavelet 1.5 x shorter (longer if that would go below C = 2/3); half the
             # difference joins sigma as a systematic term
-            c_alt = wl.center / 1.5 if wl.center / 1.5 >= 2 / 3 else wl.center * 1.5
-            alt, _ = measure(mode, waves.Wavelet(wl.bandwidth, c_alt), recs)
+            c_alt = wm.center / 1.5 if wm.center / 1.5 >= 2 / 3 else wm.center * 1.5
+            alt, _ = measure(mode, waves.Wavelet(wm.bandwidth, c_alt), recs)
             both = gv.valid & alt.valid
             if both.any():
                 sys_term = np.where(both, 0.5 * np.abs(gv.velocity_m_s - alt.velocity_m_s), 0.0)
@@ -379,14 +391,14 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
                 continue
             # the features carry only points a wavelet resolution apart: neighbours on the
             # dense grid share their errors (the full curve stays in the run file)
-            ok = waves.independent_points(freqs, ok, wl)
+            ok = waves.independent_points(freqs, ok, wm)
             out.append({"mode": mode, "direction_deg": float(direction),
                         "frequency_hz": [float(f) for f in freqs[ok]],
                         "group_velocity_m_s": [float(v) for v in gv.velocity_m_s[ok]],
                         "sigma_m_s": [float(s) for s in gv.sigma_m_s[ok]]})
             notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} independent frequencies "
                          f"{freqs[ok].min() / 1e3:.3g}-{freqs[ok].max() / 1e3:.3g} kHz from {len(recs)} shot(s), "
-                         f"{wl.name}, {'source to sensor' if force is not None or near is None else 'two sensors'}")
+                         f"{wm.name}, {'source to sensor' if force is not None or near is None else 'two sensors'}")
         path = far.distance_m - (near.distance_m if near is not None else 0.0)
         extra.setdefault("wave_path_m", path)
         extra.setdefault("sensor_length_m", far.length_m)

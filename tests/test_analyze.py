@@ -187,3 +187,31 @@ def test_aluminium_hammer_source_to_sensor(tmp_path: Path):
         stored = st.read_group("analysis")["waves"]
     assert "S0_0" in stored and "A0_0" in stored
     assert [w["mode"] for w in feats["waves"]] == ["A0"]
+
+
+def test_aluminium_hammer_s0_against_safe(tmp_path: Path):
+    """S0 under a normal hammer force, 0.375 m from the source, 8 shots: where its stated
+    sigma is below 1 % it is within 1 % of SAFE (with the A0-length wavelet cmor2-1 the
+    tail of the ~100 x stronger A0 biased it by 2-5 %, docs/wavelet-bias.md), and
+    everywhere within 2.5 of its stated sigma."""
+    from engine import safe
+    from labid.runstore import RunStore
+    from labid.specimen import load_specimen
+    rig = tmp_path / "alu_rig.toml"
+    rig.write_text(ALU_RIG)
+    run = tmp_path / "alu.h5"
+    assert main(["acquire", "--rig", str(rig), "--specimen", "aluminium", "--out", str(run),
+                 "--hits", "0", "--waves", "8", "--quiet"]) == 0
+    assert main(["analyze", str(run), "--out", str(tmp_path / "alu.json")]) == 0
+    with RunStore(run, "r") as st:
+        s0 = st.read_group("analysis")["waves"]["S0_0"]
+    ok = np.asarray(s0["valid"], bool)
+    f = np.asarray(s0["frequency_hz"])[ok]
+    v = np.asarray(s0["group_velocity_m_s"])[ok]
+    s = np.asarray(s0["sigma_m_s"])[ok]
+    cg = safe.group_velocity(load_specimen("aluminium").laminate, f, "S0")
+    err = v / cg - 1
+    tight = s / cg < 0.01
+    assert tight.sum() >= 10 and f[tight].max() - f[tight].min() > 10e3
+    assert np.abs(err[tight]).max() < 0.01
+    assert np.all(np.abs(v - cg) < 2.5 * s)

@@ -332,3 +332,25 @@ def test_independent_points_are_a_wavelet_resolution_apart():
     assert all(overlap(a, b) <= np.exp(-1) + 0.02 for a, b in zip(fk[:-1], fk[1:]))
     # a point halfway between two kept neighbours would correlate more than 1/e with both
     assert all(overlap(a, (a + b) / 2) > np.exp(-1) for a, b in zip(fk[:-1], fk[1:]))
+
+
+def test_noise_sigma_follows_a_packet_longer_than_the_wavelet():
+    """A Gaussian-envelope tone burst 4 x longer than a short wavelet (cmor0.5-1), in white
+    noise: the scatter of the picked times over 200 noise draws matches the stated sigma
+    (Monte Carlo), which must then follow the packet's width, not the wavelet's."""
+    fs, f0, n, t0 = 1e6, 40e3, 1000, 400e-6
+    wl = waves.Wavelet(0.5, 1.0)
+    t = np.arange(n) / fs
+    s_env = 4 * np.sqrt(2) * float(wl.time_std_s(f0))  # amplitude std of the burst, s
+    x0 = np.exp(-((t - t0) / s_env) ** 2 / 2) * np.cos(2 * np.pi * f0 * (t - t0))
+    std = 0.02
+    rng = np.random.default_rng(3)
+    nr = waves.white_noise_level(std, fs, [f0], wl)
+    tt, ss = [], []
+    for _ in range(200):
+        W = waves.cwt(x0 + std * rng.normal(size=n), fs, [f0], wl)
+        a = waves.arrival_times(W, fs, [f0], wl, noise_rms=nr, min_snr_db=0.0)
+        tt.append(a.times_s[0])
+        ss.append(a.sigma_s[0])
+    ratio = np.std(tt) / np.sqrt(np.mean(np.square(ss)))
+    assert 0.7 < ratio < 1.4
