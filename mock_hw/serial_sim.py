@@ -197,6 +197,18 @@ class _Server:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def close(self) -> None:
+        """Stop serving and release the port (idempotent)."""
+        if self._stop.is_set():
+            return
+        self._stop.set()
+        self._stop_timers()
+        self._thread.join(timeout=1.0)
+        self._release()
+
+    def _release(self) -> None:
+        raise NotImplementedError
+
     def _stop_timers(self) -> None:
         for t in self._timers:
             t.cancel()
@@ -228,13 +240,8 @@ class PtyServer(_Server):
             if data:
                 self._feed(data, self._send)
 
-    def close(self) -> None:
-        """Stop serving and remove the pty (the port disappears, like an unplugged USB)."""
-        if self._stop.is_set():
-            return
-        self._stop.set()
-        self._stop_timers()
-        self._thread.join(timeout=1.0)
+    def _release(self) -> None:
+        """Remove the pty (the port disappears, like an unplugged USB)."""
         for fd in (self._master, self._slave):
             try:
                 os.close(fd)
@@ -273,10 +280,5 @@ class TcpServer(_Server):
                         break
                     self._feed(data, conn.sendall)
 
-    def close(self) -> None:
-        if self._stop.is_set():
-            return
-        self._stop.set()
-        self._stop_timers()
-        self._thread.join(timeout=1.0)
+    def _release(self) -> None:
         self._sock.close()

@@ -195,15 +195,20 @@ def test_sensor_mass_and_springs_put_the_peaks_on_the_modified_plate(cfrp):
             assert np.min(np.abs(fe - fp)) < 2 * df, (eff, fp, fe)
 
 
-def envelope_peak_s(x: np.ndarray, fs: float, f0: float, rel_bw: float = 0.1) -> float:
-    """Time (s from the first sample) of the envelope peak of x filtered by a Gaussian at f0
-    (the straight line through the end samples removed first: no step at the record ends)."""
+def narrowband_envelope(x: np.ndarray, fs: float, f0: float, rel_bw: float) -> np.ndarray:
+    """Envelope of x filtered by a Gaussian at f0 (std rel_bw f0), on 4x zero padding; the
+    straight line through the end samples is removed first (no step at the record ends)."""
     x = x - np.linspace(x[0], x[-1], x.size)
     n = 4 * x.size
     X = np.fft.fft(x, n)
     f = np.fft.fftfreq(n, 1 / fs)
     G = np.where(f > 0, 2 * np.exp(-0.5 * ((f - f0) / (rel_bw * f0)) ** 2), 0)
-    return float(np.argmax(np.abs(np.fft.ifft(X * G))[:x.size])) / fs
+    return np.abs(np.fft.ifft(X * G))
+
+
+def envelope_peak_s(x: np.ndarray, fs: float, f0: float, rel_bw: float = 0.1) -> float:
+    """Time (s from the first sample) of the narrow-band envelope peak of x at f0."""
+    return float(np.argmax(narrowband_envelope(x, fs, f0, rel_bw)[:x.size])) / fs
 
 
 @pytest.fixture(scope="module")
@@ -257,12 +262,7 @@ def test_viscoelastic_loss_attenuates_waves_by_exp_minus_eta_k_x_over_2(cfrp, wa
     lossy = shot(rig, cfrp, "wave", seed=5, effects=Effects(viscoelastic=eta))
 
     def amp(x):
-        x = x - np.linspace(x[0], x[-1], x.size)
-        n = 4 * x.size
-        X = np.fft.fft(x, n)
-        f = np.fft.fftfreq(n, 1 / fs)
-        G = np.where(f > 0, 2 * np.exp(-0.5 * ((f - f0) / (0.05 * f0)) ** 2), 0)
-        return np.abs(np.fft.ifft(X * G)).max()
+        return narrowband_envelope(x, fs, f0, 0.05).max()
 
     cp = float(dispersion(cfrp.laminate, [f0]).mode("A0").phase_velocity_m_s[0])
     d2 = rig.wave_sensor("mfc2").distance_m
@@ -281,12 +281,7 @@ def test_sensor_aperture_averages_strain_like_sinc_k_l_over_2(cfrp, wave_shot):
     wide = shot(rig, cfrp, "wave", seed=5, effects=Effects(sensor_aperture=L))
 
     def amp(x):
-        x = x - np.linspace(x[0], x[-1], x.size)
-        n = 4 * x.size
-        X = np.fft.fft(x, n)
-        f = np.fft.fftfreq(n, 1 / fs)
-        G = np.where(f > 0, 2 * np.exp(-0.5 * ((f - f0) / (0.05 * f0)) ** 2), 0)
-        return np.abs(np.fft.ifft(X * G)).max()
+        return narrowband_envelope(x, fs, f0, 0.05).max()
 
     k = 2 * np.pi * f0 / float(dispersion(cfrp.laminate, [f0]).mode("A0").phase_velocity_m_s[0])
     expected = np.sin(k * L / 2) / (k * L / 2)
