@@ -16,6 +16,7 @@ import traceback
 from pathlib import Path
 
 
+from . import threads
 from .errors import UserError
 from .jsonio import to_jsonable
 
@@ -49,6 +50,10 @@ def build_parser() -> argparse.ArgumentParser:
         modname = f"labid.cmd_{name}"
         if importlib.util.find_spec(modname) is not None:
             importlib.import_module(modname).register(sub)
+    for p in sub.choices.values():
+        p.add_argument("--threads", type=int, default=None, metavar="N",
+                       help="BLAS/OpenMP threads per process (default 1, or $LABID_THREADS; "
+                            "OMP_NUM_THREADS and the like set by you are respected)")
     return parser
 
 
@@ -60,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        threads.configure(args.threads)
         result = args.func(args)
         if getattr(args, "json", None) and result is not None:
             write_json(result, args.json)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from concurrent.futures import Executor, ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -27,6 +26,7 @@ from engine.identify import (DataBlock, Estimate, IdentificationError, Prior, ba
 from engine.identify_models import modal_block, wave_block
 from engine.laminate import PhysicsError
 
+from . import threads
 from .errors import UserError
 from .features import read_features, specimen_of, validate_features
 from .specimen import Specimen, load_specimen
@@ -424,7 +424,8 @@ _WORKER_CACHE: dict[str, Problem] = {}
 
 def _job(spec: tuple) -> dict:
     """One start of a multi-start study (runs in a worker process)."""
-    key, doc, specimen, names, start, method, prior = spec
+    key, doc, specimen, names, start, method, prior, n_threads = spec
+    threads.worker_init(n_threads)   # Dask workers start with their own settings
     problem = _WORKER_CACHE.get(key)
     if problem is None:
         problem = problem_from_features(doc, specimen=specimen)
@@ -486,23 +487,18 @@ def multi_start(doc: Mapping, starts: Sequence[Mapping[str, float]], names: Sequ
     doc = dict(doc)
     doc.pop("specimen", None)
     key = json.dumps(doc, sort_keys=True, default=str) + repr(spec)
-    jobs = [(key, doc, spec, tuple(names), dict(s), method, prior) for s in starts]
+    # one BLAS thread per worker process unless the user said otherwise (labid.threads)
+    n_threads = threads.for_workers()
+    jobs = [(key, doc, spec, tuple(names), dict(s), method, prior, n_threads) for s in starts]
     if executor is not None:
         return list(executor.map(_job, jobs))
     if max_workers <= 1:
         return [_job(j) for j in jobs]
-    env = os.environ.get("OMP_NUM_THREADS")
-    os.environ["OMP_NUM_THREADS"] = "1"  # one BLAS thread per worker process
-    try:
-        with ProcessPoolExecutor(max_workers=max_workers) as ex:
-            # one start per task: starts differ in cost (local minima take 2x longer), so
-            # larger chunks leave a worker idle at the end; a task costs ~1 ms to send
-            return list(ex.map(_job, jobs, chunksize=1))
-    finally:
-        if env is None:
-            os.environ.pop("OMP_NUM_THREADS", None)
-        else:
-            os.environ["OMP_NUM_THREADS"] = env
+    with ProcessPoolExecutor(max_workers=max_workers, initializer=threads.worker_init,
+                             initargs=(n_threads,)) as ex:
+        # one start per task: starts differ in cost (local minima take 2x longer), so
+        # larger chunks leave a worker idle at the end; a task costs ~1 ms to send
+        return list(ex.map(_job, jobs, chunksize=1))
 
 
 def plot_multi_start(results: Sequence[Mapping], names: Sequence[str], path: str | Path, *,
