@@ -91,7 +91,7 @@ def _mode_families(fw: ForwardModel, params: Mapping[str, float]) -> list[str]:
     'torsion' (w ~ xy twist), 'bending-x', 'bending-y' or 'plate(m,n)' with m, n
     the sign changes along the two centre lines."""
     mf = fw.modal_forward()
-    modes, idx = mf._solve(dict(params))
+    modes, idx = mf.solve(dict(params))
     p = fw.problem
     n = 21
     xs, ys = np.linspace(0, p.length, n), np.linspace(0, p.width, n)

@@ -204,8 +204,8 @@ class _FreqPaired:
         f, J = self.inner.jacobian(params, names)
         return f[self.sel], J[self.sel]
 
-    def _solve(self, params):
-        modes, idx = self.inner._solve(params)
+    def solve(self, params):
+        modes, idx = self.inner.solve(params)
         return modes, idx[self.sel]
 
 
@@ -253,12 +253,10 @@ class ForwardModel:
         key = (round(mass, 12), round(spring, 9), round(thickness, 12))
         fw = self._modal_fw.get(key)
         if fw is None:
-            from .plate_fe import PlateModel
             p = self.problem
             model = self.base
             if thickness:
-                model = PlateModel(p.laminate.scaled_thickness(1.0 + thickness), self.base.mesh,
-                                   self.base.shear_factor, k_add=self.base._k_add)
+                model = self.base.with_laminate(p.laminate.scaled_thickness(1.0 + thickness))
             if mass and not p.rig.accelerometers:
                 raise GapError("sensor_mass needs rig.accelerometers")
             masses = p.rig.masses(mass)
@@ -283,7 +281,7 @@ class ForwardModel:
                     cost = np.abs(np.log(np.asarray(md.frequency_hz, float))[:, None]
                                   - np.log(f_nom)[None, :]) / PAIR_REL_FREQ
                     if md.shapes is not None and md.points is not None:
-                        modes, idx = inner._solve(p.nominal())
+                        modes, idx = inner.solve(p.nominal())
                         cost = cost + 1.0 - mac(np.asarray(md.shapes, float),
                                                 inner.model.shapes_at(modes, md.points)[idx])
                     rows, cols = linear_sum_assignment(cost)

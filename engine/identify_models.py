@@ -72,7 +72,8 @@ class ModalForward:
         self.pairing: np.ndarray = np.arange(self.n)
         self.mac_values: np.ndarray | None = None
 
-    def _solve(self, params: Mapping[str, float]):
+    def solve(self, params: Mapping[str, float]):
+        """(``Modes`` of the model at ``params``, predicted mode index of each measured mode)."""
         key = tuple(sorted((k, float(v)) for k, v in params.items()))
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1], self._cache[2]
@@ -104,12 +105,18 @@ class ModalForward:
         self._cache = (key, modes, idx)
         return modes, idx
 
+    def reset_tracking(self) -> None:
+        """Forget the warnings and the reference shapes of the mode-switching check
+        (the next solve becomes the reference), e.g. before a new fit."""
+        self.warnings.clear()
+        self._ref_shapes = None
+
     def predict(self, params: Mapping[str, float]) -> np.ndarray:
-        modes, idx = self._solve(params)
+        modes, idx = self.solve(params)
         return modes.frequencies_hz[idx]
 
     def jacobian(self, params: Mapping[str, float], names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
-        modes, idx = self._solve(params)
+        modes, idx = self.solve(params)
         dlam = self.model.eigen_sensitivities(modes, list(names), params=dict(params),
                                               material=self.material)[idx]
         f = modes.frequencies_hz[idx]

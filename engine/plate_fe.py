@@ -642,6 +642,28 @@ class PlateModel:
             mat.check()
         return cls(laminate, m, shear_factor)
 
+    @property
+    def k_add(self) -> np.ndarray:
+        """Added stiffness (springs, stiffness loss) on the sparse pattern's entries (read-only)."""
+        v = self._k_add.view()
+        v.flags.writeable = False
+        return v
+
+    @property
+    def m_add(self) -> np.ndarray:
+        """Added mass (point masses) on the sparse pattern's entries (read-only)."""
+        v = self._m_add.view()
+        v.flags.writeable = False
+        return v
+
+    def with_laminate(self, laminate: Laminate) -> "PlateModel":
+        """The same mesh, shear factor and added stiffness and mass with another laminate
+        (e.g. scaled thickness); mesh-only data are shared."""
+        Kref, Mref = self._Ke, self._Me
+        return PlateModel(laminate, self.mesh, self.shear_factor,
+                          _parts=(Kref, Mref, self._pat, _material_maps(laminate, self.shear_factor)),
+                          k_add=self._k_add, m_add=self._m_add, _cache=self._cache)
+
     def _derived(self, k_add=None, m_add=None) -> "PlateModel":
         return PlateModel(self.laminate, self.mesh, self.shear_factor,
                           _parts=(self._Ke, self._Me, self._pat, self._maps),

@@ -314,8 +314,7 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     if method not in METHODS:
         raise UserError(f"method {method!r}: expected one of {list(METHODS)}", key="--method")
     if problem.modal_forward is not None:
-        problem.modal_forward.warnings.clear()
-        problem.modal_forward._ref_shapes = None
+        problem.modal_forward.reset_tracking()
     try:
         if method == "lm":
             est = estimate(problem.blocks, names, st, prior=prior, max_iter=max_iter)

@@ -144,7 +144,7 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     # mode shapes of the true (perturbed) plate at the measurement points
     mf = fw.modal_forward(effects.get("sensor_mass", 0.0), effects.get("support_stiffness", 0.0),
                           effects.get("thickness", 0.0))
-    modes, idx = mf._solve(truth)
+    modes, idx = mf.solve(truth)
     pts = _shape_points()
     shapes = mf.model.shapes_at(modes, pts)[idx]
     shapes = shapes / np.max(np.abs(shapes), axis=1, keepdims=True)
