@@ -22,7 +22,7 @@ from drivers.protocol import AcquisitionError, NoTrigger, Record
 
 from .errors import UserError
 from .rig import Rig, load_rig
-from .runstore import RunStore
+from .store import RunStore
 from .specimen import BUILTIN as SPECIMENS, Specimen, load_specimen
 
 BACKENDS = ("mock", "nidaqmx")

@@ -39,7 +39,7 @@ def register(sub) -> None:
 
 def _remove_if_empty(path: Path, existed: bool) -> None:
     """Do not leave behind a run file this command created without recording anything."""
-    from .runstore import RunStore
+    from .store import RunStore
     if existed or not path.exists():
         return
     try:
@@ -54,7 +54,7 @@ def _remove_if_empty(path: Path, existed: bool) -> None:
 def run(args) -> dict:
     from .acquisition import AcquisitionSession
     from .rig import load_rig
-    from .runstore import RunStore
+    from .store import RunStore
     from .specimen import load_specimen
 
     effects = None

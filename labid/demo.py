@@ -58,7 +58,7 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     """Run the demo into ``out_dir``; return the JSON-ready summary."""
     from .acquisition import AcquisitionSession
     from .analysis import analyze_run
-    from .runstore import RunStore
+    from .store import RunStore
     from .specimen import load_specimen
     from . import identification as idn
 

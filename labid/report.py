@@ -51,7 +51,7 @@ class RunData:
 
 def load_run(path: str | Path, max_shots: int = 20) -> RunData:
     """Read configuration, shots (at most ``max_shots`` per kind) and every results group."""
-    from .runstore import RunStore
+    from .store import RunStore
     with RunStore(path, "r") as st:
         rd = RunData(str(path), st.specimen_toml(), st.rig_toml())
         rd.attrs = st.attributes()

@@ -304,7 +304,7 @@ class AcquisitionView(QWidget):
         self.main.set_run_path(str(path), reload=False)
 
         def work(progress, should_stop):
-            from ..runstore import RunStore
+            from ..store import RunStore
             with RunStore(path, "a") as store:
                 session = LiveSession(rig, spec, store, backend=backend, effects=effects, seed=seed,
                                       on_record=lambda k, rec: progress(("record", display_record(k, rec))))

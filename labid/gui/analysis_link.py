@@ -25,7 +25,7 @@ def features_path(run: str) -> Path:
 
 def analysis_job(link, run: str, temperature_c, progress, should_stop):
     """Background part: analyse the run file, store the results; returns the Analysis."""
-    from ..runstore import RunStore
+    from ..store import RunStore
     settings = link.AnalysisSettings()
     with RunStore(run, "r") as st:
         an = link.analyze_store(st, settings)
@@ -56,7 +56,7 @@ def modal_section(link, peaks, old: dict | None) -> dict | None:
 def save_picks(link, run: str, peaks) -> dict:
     """Replace the run's modal features (and stored peaks) by ``peaks``; returns the features."""
     from ..features import features_text
-    from ..runstore import RunStore
+    from ..store import RunStore
     with RunStore(run, "r") as st:
         try:
             res = st.read_group("analysis")
@@ -86,7 +86,7 @@ def save_picks(link, run: str, peaks) -> dict:
 
 def spectra_of_run(link, run: str):
     """Spectra of the run's hammer shots (for editing picks after reopening a run)."""
-    from ..runstore import RunStore
+    from ..store import RunStore
     with RunStore(run, "r") as st:
         recs = st.shots("hammer")
     _, spec, _ = link.modal_features(recs, link.AnalysisSettings())

@@ -154,7 +154,7 @@ class MainWindow(QMainWindow):
 
     def open_run(self, path: str) -> bool:
         """Open an existing run file and restore the views; a bad file shows a message."""
-        from ..runstore import RunStore
+        from ..store import RunStore
         try:
             with RunStore(path, "r") as store:
                 spec_toml, rig_toml = store.specimen_toml(), store.rig_toml()
@@ -194,7 +194,7 @@ class MainWindow(QMainWindow):
         if not self.run_path or not Path(self.run_path).exists():
             return None
         from ..report import decode_group
-        from ..runstore import RunStore
+        from ..store import RunStore
         try:
             with RunStore(self.run_path, "r") as store:
                 return decode_group(store.read_group(name))
@@ -207,7 +207,7 @@ class MainWindow(QMainWindow):
     def store_results(self, name: str, data: dict) -> bool:
         """Write ``data`` under /results/<name> (structured + a JSON copy)."""
         from ..jsonio import to_jsonable
-        from ..runstore import RunStore
+        from ..store import RunStore
         if not self.run_path:
             self._mem_results[name] = to_jsonable(data)
             self.message(f"{name}: kept in memory only (no run file)", error=True)
@@ -305,7 +305,7 @@ class MainWindow(QMainWindow):
         if self.busy():
             self.message(f"{self.job.name} is running; save the session when it has finished", error=True)
             return False
-        from ..runstore import RunStore
+        from ..store import RunStore
         try:
             with RunStore(self.run_path, "a") as store:
                 store.write_group("gui", {"state_json": json.dumps(self.session_state())})

@@ -81,7 +81,7 @@ class WavesView(QWidget):
         self.reload()
 
     def _load_records(self) -> None:
-        from ..runstore import RunStore
+        from ..store import RunStore
         self._records = []
         self.shot_combo.blockSignals(True)
         self.shot_combo.clear()
