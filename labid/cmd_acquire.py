@@ -10,8 +10,12 @@ import signal
 import sys
 from pathlib import Path
 
-from .cli import add_json_option, write_json
+from .acquisition import AcquisitionSession
+from .cmdutil import add_json_option, write_json
 from .errors import UserError
+from .rig import load_rig
+from .specimen import load_specimen
+from .store import RunStore
 
 
 def register(sub) -> None:
@@ -39,7 +43,6 @@ def register(sub) -> None:
 
 def _remove_if_empty(path: Path, existed: bool) -> None:
     """Do not leave behind a run file this command created without recording anything."""
-    from .store import RunStore
     if existed or not path.exists():
         return
     try:
@@ -52,11 +55,6 @@ def _remove_if_empty(path: Path, existed: bool) -> None:
 
 
 def run(args) -> dict:
-    from .acquisition import AcquisitionSession
-    from .rig import load_rig
-    from .store import RunStore
-    from .specimen import load_specimen
-
     effects = None
     if args.effects:
         if args.backend != "mock":

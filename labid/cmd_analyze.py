@@ -9,7 +9,8 @@ from __future__ import annotations
 import re
 import sys
 
-from .cli import add_json_option
+from .analysis import AnalysisSettings, analyze_run
+from .cmdutil import add_json_option
 from .errors import UserError
 
 _PAIR = re.compile(r"^\s*([0-9.eE+-]+)\s*[,:-]\s*([0-9.eE+-]+)\s*$")
@@ -50,8 +51,6 @@ def _pair(text: str, key: str) -> tuple[float, float]:
 
 
 def run(args) -> dict:
-    from .analysis import AnalysisSettings, analyze_run
-
     if args.modal_fmax is not None and not args.modal_fmax > 0:
         raise UserError(f"value {args.modal_fmax!r}: expected a positive frequency in Hz", key="--modal-fmax")
     if args.exp_window is not None and not args.exp_window > 0:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import sys
 
-from .cli import add_json_option
+from .cmdutil import add_json_option
 from .errors import UserError
 
 
