@@ -85,8 +85,9 @@ def test_results_stored_in_the_run_and_readable(analysed, run_file):
     assert g["spectrum"]["frequencies_hz"].shape == g["spectrum"]["indicator"].shape
     np.testing.assert_allclose(g["peaks"]["frequency_hz"], feats["modal"]["frequencies_hz"])
     assert g["arrivals"]["times_s"].size == g["arrivals"]["frequencies_hz"].size > 0
-    # the report module finds the features where it looks for them
-    from labid.report import FEATURES_GROUPS, decode_group, lookup
+    # the services (which the report and the panel read through) find the features there
+    from labid.services import FEATURES_GROUPS, lookup
+    from labid.store import decode_result as decode_group
     assert decode_group(lookup({"analysis": g}, FEATURES_GROUPS)) == feats
 
 
