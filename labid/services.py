@@ -453,19 +453,23 @@ def run_of_features(features_file: str | Path) -> Path | None:
     ref = (doc.get("analysis") or {}).get("run") if isinstance(doc, dict) else None
     if not isinstance(ref, str) or not ref:
         return None
-    run = Path(ref) if Path(ref).is_absolute() else p.parent / ref
+    run = (Path(ref) if Path(ref).is_absolute() else p.parent / ref).resolve()
     return run if run.is_file() else None
 
 
-def store_for_features(features_file: str | Path, name: str, result: Mapping) -> Path | None:
+def store_for_features(features_file: str | Path, name: str, result: Mapping) -> str | None:
     """Store a result computed from a features file (``labid identify``, ``labid diagnose``)
-    under ``/results/<name>`` of the run the features came from, where the panel and
-    the report find it. Returns that run file, None when the features came from no run."""
+    under ``/results/<name>`` of the run the features came from, where the panel and the
+    report find it. Returns a one-line note for the user (stored, or why not: the result
+    itself is never lost to it), None when the features came from no run."""
     run = run_of_features(features_file)
     if run is None:
         return None
-    store_result(run, name, result)
-    return run
+    try:
+        store_result(run, name, result)
+    except (UserError, OSError) as e:
+        return f"warning: result not stored in the run file: {e}"
+    return f"result stored in {run} (/results/{name})"
 
 
 # ============================================================== display
