@@ -13,7 +13,8 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
-    # Qt is an optional dependency: imported here so that a missing PySide6 is one clear line
+    # Qt is an optional dependency: it (and the panel built on it) is imported here, so that
+    # a missing PySide6 is one clear line and no other command pays for it
     try:
         from PySide6.QtWidgets import QApplication
     except ImportError as e:
