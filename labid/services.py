@@ -14,8 +14,9 @@ Workflows: ``acquire`` (+ ``parse_effects``, ``check_daq``,
 ``spectra_of_run``, ``toggle_peak``), ``run_identification``,
 ``run_diagnosis``, ``store_for_features`` (a CLI result into the run its
 features came from).
-Display: ``spectrum_indicator``, ``average_spectrum``, ``scalogram``,
-``model_group_velocity``, ``model_frequencies``.
+Display (``labid.display``, re-exported): ``spectrum_indicator``,
+``average_spectrum``, ``scalogram``, ``model_group_velocity``,
+``model_frequencies``, ``parameters_of``.
 """
 from __future__ import annotations
 
@@ -30,19 +31,37 @@ import numpy as np
 
 from drivers.protocol import AcquisitionError, Record
 from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentError
-from engine import modal, safe, waves
-from engine.laminate import Laminate
+from engine import modal
 from mock_hw.rig import Effects
 
 from . import diagnosis as diag
 from . import identification as ident
 from .acquisition import AcquisitionSession, LiveSession
 from .analysis import Analysis, AnalysisSettings, analyze_store, modal_features, modal_table, store_analysis
+from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
+                      scalogram)
 from .errors import Cancelled, UserError
 from .features import features_text
 from .rig import Rig
 from .specimen import Specimen, load_specimen, specimen_from_dict
 from .store import KINDS, RunStore, decode_result
+
+__all__ = [
+    # the run file
+    "RunData", "open_run", "shots", "read_result", "store_result", "save_session", "session_state",
+    "lookup", "features_of", "stored_features", "discard_empty_run",
+    "FEATURES_GROUPS", "IDENT_GROUPS", "GAP_GROUPS", "SESSION_GROUP", "USER_ERRORS",
+    # acquisition
+    "parse_effects", "acquire", "check_daq", "read_instruments",
+    # analysis and picks
+    "features_path", "run_analysis", "run_reference", "stored_peaks", "save_picks", "spectra_of_run",
+    "spectrum_indicator", "toggle_peak",
+    # identification and diagnosis
+    "select_data", "load_features_file", "specimen_for_features", "parse_start", "cancellable",
+    "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
+    # display (labid.display)
+    "Scalogram", "average_spectrum", "scalogram", "model_group_velocity", "model_frequencies", "parameters_of",
+]
 
 #: where the workflows' results sit under /results (first match wins)
 FEATURES_GROUPS = ("features", "analysis/features", "analysis")
@@ -470,82 +489,3 @@ def store_for_features(features_file: str | Path, name: str, result: Mapping) ->
     except (UserError, OSError) as e:
         return f"warning: result not stored in the run file: {e}"
     return f"result stored in {run} (/results/{name})"
-
-
-# ============================================================== display
-def average_spectrum(records: Sequence[Record]) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """Display spectrum of hammer shots: the summed normalised indicator of ``engine.modal``
-    over the accelerometer channels (H1 when a force is recorded): (f Hz, indicator, kind)."""
-    if not records:
-        return None
-    r0 = records[0]
-    acc = [c.name for c in r0.channels if c.kind == "accelerometer"] or [c.name for c in r0.channels]
-    force = next((c.name for c in r0.channels if c.kind == "force"), None)
-    x = np.array([[r.scaled(c) for c in acc] for r in records])
-    F = np.array([r.scaled(force) for r in records]) if force else None
-    spec = modal.spectra(x, r0.timing.rate_hz, F, pretrigger=r0.timing.pretrigger, channels=acc)
-    return spec.frequencies_hz, modal.indicator(spec), spec.kind
-
-
-@dataclass(frozen=True)
-class Scalogram:
-    """|CWT| of one channel of a record: ``magnitude`` (nf, n) on ``frequencies_hz`` x ``times_s``."""
-
-    times_s: np.ndarray
-    frequencies_hz: np.ndarray
-    magnitude: np.ndarray
-    wavelet: str
-
-
-def _wavelet(name: Any) -> waves.Wavelet:
-    """The wavelet named 'cmorB-C' (the analysis' choice); the paper's CFRP one otherwise.
-    (``engine.waves.Wavelet.from_name`` replaces this once it exists.)"""
-    if isinstance(name, str) and name.startswith("cmor") and "-" in name:
-        b, c = name[4:].split("-", 1)
-        return waves.Wavelet(float(b), float(c))
-    return waves.PAPER_CFRP
-
-
-def scalogram(record: Record, channel: str, analysis: Mapping | None = None,
-              n_freqs: int = 100) -> Scalogram:
-    """The scalogram of ``channel`` with the wavelet and band of a stored analysis
-    (``read_result(run, 'analysis')``); without one, cmor2-5 on fmax/20..fmax,
-    fmax = min(200 kHz, 0.4 x rate)."""
-    analysis = analysis or {}
-    fs = record.timing.rate_hz
-    wl = _wavelet((analysis.get("arrivals") or {}).get("wavelet"))
-    band = (analysis.get("settings") or {}).get("wave_band_hz")
-    if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
-        fmin, fmax = float(band[0]), float(band[1])
-    else:
-        fmax = min(200e3, 0.4 * fs)
-        fmin = fmax / 20
-    freqs = np.linspace(fmin, fmax, n_freqs)
-    W = np.abs(waves.cwt(record.scaled(channel), fs, freqs, wl))
-    return Scalogram(record.time(), freqs, W, wl.name)
-
-
-def model_group_velocity(laminate: Laminate, frequency_hz, mode: str = "A0", direction_deg: float = 0.0,
-                         params: Mapping[str, float] | None = None) -> np.ndarray:
-    """SAFE group velocity (m/s) of ``mode`` on ``frequency_hz`` for the nominal laminate,
-    or with the constants ``params`` (e.g. identified) in place of its own."""
-    lam = laminate.with_params(dict(params)) if params else laminate
-    return np.asarray(safe.group_velocity(lam, frequency_hz, mode, direction_deg), float)
-
-
-def model_frequencies(identification: Mapping | None) -> np.ndarray:
-    """Natural frequencies (Hz) the identified model predicts for the modal data of an
-    identification result (``read_result(run, 'identification')``)."""
-    out: list[float] = []
-    blocks = (identification or {}).get("blocks") if isinstance(identification, Mapping) else None
-    if isinstance(blocks, Mapping):
-        for b in blocks.values():
-            if isinstance(b, Mapping) and b.get("kind") == "modal" and b.get("predicted") is not None:
-                out.extend(np.atleast_1d(np.asarray(b["predicted"], float)))
-    return np.asarray(out)
-
-
-def parameters_of(identification: Mapping | None) -> dict[str, float]:
-    """``{name: value}`` of an identification result ({} if none)."""
-    params = (identification or {}).get("parameters") if isinstance(identification, Mapping) else None
-    return {n: float(p["value"]) for n, p in (params or {}).items() if isinstance(p, Mapping) and "value" in p}
