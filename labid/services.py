@@ -2,8 +2,9 @@
 
 Front-ends (``labid.gui``, ``labid.cmd_*``, ``labid.report``, ``labid.demo``)
 call these functions; they never open a ``RunStore`` or call ``engine``
-themselves. Each function opens the run file for as long as it needs it
-and closes it again, so a view never holds the file open.
+themselves (except ``labid dispersion`` and ``labid modes``, which touch no
+run file and must start fast). Each function opens the run file for as long
+as it needs it and closes it again, so a view never holds the file open.
 
 Run file: ``open_run`` (-> ``RunData``: configuration, shot counts, up to
 ``max_shots`` shots, every results group decoded), ``shots``,
