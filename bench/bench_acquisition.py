@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench._machine import machine as _machine  # noqa: E402
 
 from labid.rig import read_rig_text, rig_from_text  # noqa: E402
-from labid.runstore import RunStore  # noqa: E402
+from labid.store import RunStore  # noqa: E402
 from labid.specimen import load_specimen  # noqa: E402
 from mock_hw.rig import SimulatedDevice  # noqa: E402
 
@@ -98,7 +98,7 @@ def main() -> None:
     for r in rows:
         print(f"| {r['role']} | {r['rate']:.3g} | {r['channels']} x {r['samples']} | {r['first_s']:.2f} | "
               f"{1e3 * r['per_shot_s']:.2f} | {r['samples_per_s']:.3g} | {r['realtime']:.1f} |")
-    print("\nStorage (`labid.runstore.RunStore`, each shot flushed, gzip-1 + shuffle, float64 volts):\n")
+    print("\nStorage (`labid.store.RunStore`, each shot flushed, gzip-1 + shuffle, float64 volts):\n")
     print("| kind | shots | append samples/s | append MB/s (raw) | read samples/s | compression |")
     print("| --- | --- | --- | --- | --- | --- |")
     for s in stores:

@@ -7,8 +7,11 @@ did not trigger (``NoTrigger``), overloaded a channel or was a double hit is
 reported through ``progress`` and redone, at most ``rig.max_retries`` times.
 ``should_stop()`` is polled between shots: stopping keeps everything recorded.
 The devices are ``mock_hw.rig.SimulatedDevice`` (backend 'mock') or
-``drivers.nidaq.NiDaqDevice`` (backend 'nidaqmx', imported lazily); the
-workflow only uses the ``drivers.protocol.Device`` methods.
+``drivers.nidaq.NiDaqDevice`` (backend 'nidaqmx'; it loads the ``nidaqmx``
+package only when a device is configured, so a missing NI driver is one
+clear line then); the workflow only uses the ``drivers.protocol.Device``
+methods. ``LiveSession`` also hands every device read (accepted or not) to
+``on_record`` (the panel's live traces).
 """
 from __future__ import annotations
 
@@ -18,11 +21,13 @@ from typing import Any, Callable
 
 import numpy as np
 
+from drivers.nidaq import NiDaqDevice
 from drivers.protocol import AcquisitionError, NoTrigger, Record
+from mock_hw.rig import SimulatedDevice
 
 from .errors import UserError
 from .rig import Rig, load_rig
-from .runstore import RunStore
+from .store import RunStore
 from .specimen import BUILTIN as SPECIMENS, Specimen, load_specimen
 
 BACKENDS = ("mock", "nidaqmx")
@@ -89,17 +94,11 @@ class AcquisitionSession:
         if self.device_factory is not None:
             dev = self.device_factory(spec)
         elif self.backend == "mock":
-            from mock_hw.rig import SimulatedDevice
             dev = SimulatedDevice(self.rig, self.specimen, kind, self.effects, self.seed)
             last = [m.get("shot_index") for m in self.store.metas(kind)[-1:]]
             if last and isinstance(last[0], int):
                 dev.shot_index = last[0] + 1          # resume: continue the random sequence
         else:
-            try:
-                from drivers.nidaq import NiDaqDevice
-            except ImportError as e:
-                raise UserError(f"the NI-DAQmx driver module is not available ({e}); "
-                                "use --backend mock to run on the simulated rig", key="--backend") from None
             daq = spec.daq_device or next((c.physical.split("/")[0] for c in spec.channels
                                            if "/" in c.physical), "Dev1")
         try:
@@ -228,3 +227,36 @@ class AcquisitionSession:
             "interrupted": interrupted,
             "complete": not interrupted and all(len(recorded[k]) == want[k] for k in KINDS),
         }
+
+
+class TappedDevice:
+    """A device whose reads are also handed to ``on_record(kind, record)`` (delegates the protocol)."""
+
+    def __init__(self, dev, kind: str, on_record):
+        self._dev, self._kind, self._on_record = dev, kind, on_record
+        self.name = getattr(dev, "name", kind)
+
+    def configure(self, *a, **kw):
+        return self._dev.configure(*a, **kw)
+
+    def arm(self):
+        return self._dev.arm()
+
+    def read(self, timeout_s: float = 10.0):
+        rec = self._dev.read(timeout_s)
+        self._on_record(self._kind, rec)
+        return rec
+
+    def close(self):
+        return self._dev.close()
+
+
+class LiveSession(AcquisitionSession):
+    """AcquisitionSession whose device reads are reported to ``on_record(kind, record)``."""
+
+    def __init__(self, *a, on_record=None, **kw):
+        super().__init__(*a, **kw)
+        self._on_record = on_record or (lambda kind, rec: None)
+
+    def device(self, kind: str):
+        return TappedDevice(super().device(kind), kind, self._on_record)

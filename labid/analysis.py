@@ -39,7 +39,7 @@ from engine.laminate import Laminate
 from .errors import UserError
 from .features import features_text, validate_features
 from .rig import Rig, rig_from_text
-from .runstore import RunStore
+from .store import RunStore
 from .specimen import Specimen, specimen_from_dict
 
 __all__ = ["AnalysisSettings", "Analysis", "modal_features", "wave_features", "analyze_store",

@@ -4,24 +4,36 @@ Exit codes: 0 success, 2 user error (one line on stderr, no traceback),
 1 internal failure. Each command lives in ``labid/cmd_<name>.py`` and exposes
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> dict``.
 The returned dict is the ``--json`` result.
+
+Fast start: only the module of the command being run is imported (with its
+numerical libraries); ``labid --help`` lists the commands from the static
+``COMMANDS`` table and imports none of them (``bench/bench_cli.py``).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
-import json
 import sys
 import traceback
-from pathlib import Path
-
 
 from . import threads
+from .cmdutil import write_json
 from .errors import UserError
-from .jsonio import to_jsonable
 
-COMMANDS = ("dispersion", "modes", "acquire", "analyze", "identify", "diagnose",
-            "demo", "report", "gui")
+#: every command with its one-line help, in the order ``labid --help`` lists them
+#: (each module's ``register`` uses the same line; tests/test_cli.py checks it)
+COMMANDS: dict[str, str] = {
+    "dispersion": "guided-wave dispersion curves (SAFE)",
+    "modes": "free-free natural frequencies of the plate",
+    "acquire": "headless acquisition session (appends to RUN.h5)",
+    "analyze": "resonance peaks and CWT group velocities of a run -> features",
+    "identify": "identify elastic constants from a features file",
+    "diagnose": "sim-to-real gap diagnosis of a features file",
+    "demo": "the whole job end to end on the simulated rig",
+    "report": "self-contained HTML report of a run",
+    "gui": "the lab panel",
+}
+ALL = "*"
 
 
 class _Parser(argparse.ArgumentParser):
@@ -30,26 +42,23 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-def write_json(result: dict, path: str) -> None:
-    """Write a result as JSON to ``path``; '-' is standard output. NaN -> null."""
-    text = json.dumps(to_jsonable(result), indent=2, allow_nan=False)
-    if path == "-":
-        sys.stdout.write(text + "\n")
-    else:
-        try:
-            Path(path).write_text(text + "\n")
-        except OSError as e:
-            raise UserError(f"cannot write: {e.strerror}", file=path, key="--json") from None
+def command_module(name: str):
+    """The module of command ``name``, imported now (the CLI's lazy loading of commands)."""
+    return importlib.import_module(f"labid.cmd_{name}")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(load: str | None = ALL) -> argparse.ArgumentParser:
+    """The ``labid`` parser. ``load``: the command whose module is imported to add its
+    full parser (``ALL``: every command; None: none); the others are listed by name
+    and help line only."""
     parser = _Parser(prog="labid", description="Elastic constants of composite plates from "
                      "vibration and guided waves, without cutting them.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name in COMMANDS:
-        modname = f"labid.cmd_{name}"
-        if importlib.util.find_spec(modname) is not None:
-            importlib.import_module(modname).register(sub)
+    for name, help_line in COMMANDS.items():
+        if load in (ALL, name):
+            command_module(name).register(sub)
+        else:
+            sub.add_parser(name, help=help_line, add_help=False)
     for p in sub.choices.values():
         p.add_argument("--threads", type=int, default=None, metavar="N",
                        help="BLAS/OpenMP threads per process (default 1, or $LABID_THREADS; "
@@ -57,12 +66,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def add_json_option(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--json", metavar="PATH", help="write the machine-readable result ('-' for stdout)")
-
-
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
     try:
         threads.configure(args.threads)

@@ -10,8 +10,11 @@ import signal
 import sys
 from pathlib import Path
 
-from .cli import add_json_option, write_json
+from . import services
+from .cmdutil import add_json_option, write_json
 from .errors import UserError
+from .rig import load_rig
+from .specimen import load_specimen
 
 
 def register(sub) -> None:
@@ -37,36 +40,11 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _remove_if_empty(path: Path, existed: bool) -> None:
-    """Do not leave behind a run file this command created without recording anything."""
-    from .runstore import RunStore
-    if existed or not path.exists():
-        return
-    try:
-        with RunStore(path, "r") as s:
-            empty = s.n_shots() == 0
-    except Exception:  # noqa: BLE001
-        return
-    if empty:
-        path.unlink()
-
-
 def run(args) -> dict:
-    from .acquisition import AcquisitionSession
-    from .rig import load_rig
-    from .runstore import RunStore
-    from .specimen import load_specimen
-
-    effects = None
-    if args.effects:
-        if args.backend != "mock":
-            raise UserError("effects can only be injected into the simulated rig; expected --backend mock",
-                            key="--effects")
-        from mock_hw.rig import Effects
-        try:
-            effects = Effects.parse(args.effects)
-        except ValueError as e:
-            raise UserError(str(e), key="--effects") from None
+    if args.effects and args.backend != "mock":
+        raise UserError("effects can only be injected into the simulated rig; expected --backend mock",
+                        key="--effects")
+    effects = services.parse_effects(args.effects, key="--effects")
     for opt in ("hits", "waves"):
         v = getattr(args, opt)
         if v is not None and v < 0:
@@ -89,19 +67,17 @@ def run(args) -> dict:
     rig.check_specimen(specimen.length, specimen.width)
     out = Path(args.out)
     existed = out.exists()
+    old = signal.signal(signal.SIGINT, on_sigint)
     try:
-        with RunStore(out, "a") as store:
-            session = AcquisitionSession(rig, specimen, store, backend=args.backend,
-                                         effects=effects, seed=args.seed)
-            old = signal.signal(signal.SIGINT, on_sigint)
-            try:
-                summary = session.run(args.hits, args.waves, progress=progress,
-                                      should_stop=lambda: stop["flag"], total=args.total)
-            finally:
-                signal.signal(signal.SIGINT, old)
+        summary = services.acquire(out, rig, specimen, backend=args.backend, effects=effects, seed=args.seed,
+                                   hits=args.hits, waves=args.waves, total=args.total, progress=progress,
+                                   should_stop=lambda: stop["flag"])
     except UserError:
-        _remove_if_empty(out, existed)
+        if not existed:   # do not leave behind a run file this command created without a shot
+            services.discard_empty_run(out)
         raise
+    finally:
+        signal.signal(signal.SIGINT, old)
     rec = summary["recorded"]
     sys.stderr.write(f"labid acquire: recorded {rec['hammer']} hammer and {rec['wave']} wave shots "
                      f"into {args.out} ({summary['in_file']['hammer']} + {summary['in_file']['wave']} "

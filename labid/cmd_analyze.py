@@ -1,15 +1,18 @@
 """``labid analyze``: peak picking and CWT group velocities from the raw records of a run.
 
 Writes the features file (CONTRACT section 2; default ``RUN.features.json``
-next to the run) and stores features, picks and curves in the run file
-(``/results/analysis``). The ``--json`` result is the features document.
+next to the run; ``analysis.run`` is the run file relative to it) and stores
+features, picks and curves in the run file (``/results/analysis``). The
+``--json`` result is the features document.
 """
 from __future__ import annotations
 
 import re
 import sys
 
-from .cli import add_json_option
+from . import services
+from .analysis import AnalysisSettings
+from .cmdutil import add_json_option
 from .errors import UserError
 
 _PAIR = re.compile(r"^\s*([0-9.eE+-]+)\s*[,:-]\s*([0-9.eE+-]+)\s*$")
@@ -50,8 +53,6 @@ def _pair(text: str, key: str) -> tuple[float, float]:
 
 
 def run(args) -> dict:
-    from .analysis import AnalysisSettings, analyze_run
-
     if args.modal_fmax is not None and not args.modal_fmax > 0:
         raise UserError(f"value {args.modal_fmax!r}: expected a positive frequency in Hz", key="--modal-fmax")
     if args.exp_window is not None and not args.exp_window > 0:
@@ -63,7 +64,7 @@ def run(args) -> dict:
         modal_fmax_hz=args.modal_fmax, exp_tau_s=args.exp_window,
         wavelet=_pair(args.wavelet, "--wavelet") if args.wavelet else None,
         wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous", report_s0=args.with_s0)
-    feats = analyze_run(args.run, args.out, settings)
+    feats = services.run_analysis(args.run, settings, out=args.out).features
     if getattr(args, "json", None) != "-":
         m = feats.get("modal") or {}
         for f, z in zip(m.get("frequencies_hz", []), m.get("damping_ratio", [])):

@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import sys
 
-from .cli import add_json_option
+from .cmdutil import add_json_option
+from .demo import run_demo
 
 
 def register(sub) -> None:
@@ -17,8 +18,6 @@ def register(sub) -> None:
 
 
 def run(args) -> dict:
-    from .demo import run_demo
-
     def report(line: str) -> None:
         # progress goes to stderr when the JSON result goes to stdout
         print(line, file=sys.stderr if args.json == "-" else sys.stdout, flush=True)

@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import sys
 
-from .cli import add_json_option
+from . import services
+from .cmdutil import add_json_option
 from .errors import UserError
 
 
@@ -48,4 +49,6 @@ def run(args) -> dict:
         for e in res["effects"][:3]:
             sys.stdout.write(f"  {e['name']:18s} {e['magnitude']:.4g} {e['unit']:4s} "
                              f"gap_after {e['gap_after']:.2f} score {e['score']:.2f}\n")
+    if note := services.store_for_features(args.features, "diagnosis", res):
+        sys.stderr.write(f"labid diagnose: {note}\n")
     return res

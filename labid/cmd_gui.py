@@ -1,6 +1,8 @@
 """``labid gui [RUN.h5]``: the lab panel (PySide6 + pyqtgraph)."""
 from __future__ import annotations
 
+import gc
+
 from .errors import UserError
 
 
@@ -11,13 +13,14 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
+    # Qt is an optional dependency: it (and the panel built on it) is imported here, so that
+    # a missing PySide6 is one clear line and no other command pays for it
     try:
         from PySide6.QtWidgets import QApplication
     except ImportError as e:
         raise UserError(f"PySide6 is not available ({e}); expected the Qt bindings to be installed") from None
     from .gui.main_window import MainWindow
     app = QApplication.instance() or QApplication(["labid"])
-    import gc
     win = MainWindow(args.run)
     win.show()
     app.exec()

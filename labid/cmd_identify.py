@@ -11,7 +11,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .cli import add_json_option
+from . import services
+from .cmdutil import add_json_option
 from .errors import UserError
 from .identification import (METHODS, load_problem, multi_start, load_features,
                              parse_assignments, plot_multi_start, random_starts, run, _start)
@@ -93,6 +94,8 @@ def _run(args: argparse.Namespace) -> dict:
             plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
     if args.json != "-":
         _print(out, est.names)
+    if note := services.store_for_features(args.features, "identification", out):
+        sys.stderr.write(f"labid identify: {note}\n")
     return out
 
 

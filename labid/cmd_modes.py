@@ -17,8 +17,12 @@ import sys
 
 import numpy as np
 
-from .cli import add_json_option
+from engine.laminate import PhysicsError
+from engine.plate_fe import FEError, PlateModel
+
+from .cmdutil import add_json_option
 from .errors import UserError
+from .specimen import load_specimen
 
 _GRID_RE = re.compile(r"^\s*(\d+)\s*[xX*]\s*(\d+)\s*$")
 MAX_ELEMENTS = 60  # per side, for --mesh
@@ -50,11 +54,6 @@ def _pair(text: str, key: str, lo: int, hi: int) -> tuple[int, int]:
 
 
 def run(args) -> dict:
-    from engine.laminate import PhysicsError
-    from engine.plate_fe import FEError, PlateModel
-
-    from .specimen import load_specimen
-
     if args.n < 1 or args.n > 200:
         raise UserError(f"value {args.n}: expected a number of modes in 1..200", key="--n")
     mesh = None if args.mesh is None else _pair(args.mesh, "--mesh", 1, MAX_ELEMENTS)

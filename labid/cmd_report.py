@@ -1,7 +1,8 @@
 """``labid report RUN.h5 [--out REPORT.html]``: a self-contained HTML test report."""
 from __future__ import annotations
 
-from .cli import add_json_option
+from .cmdutil import add_json_option
+from .report import write_report
 
 
 def register(sub) -> None:
@@ -14,6 +15,5 @@ def register(sub) -> None:
 
 
 def run(args) -> dict:
-    from .report import write_report
     out = write_report(args.run, args.out)
     return {"out": out}

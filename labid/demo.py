@@ -14,19 +14,13 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from . import services
+from .diagnosis import plot_gap
 from .errors import UserError
+from .report import write_report
+from .specimen import load_specimen
 
 DATASETS = ("modal", "waves", "combined")
-
-
-def _subset(features: dict, which: str) -> dict:
-    """The features document restricted to one data set."""
-    doc = dict(features)
-    if which == "modal":
-        doc.pop("waves", None)
-    elif which == "waves":
-        doc.pop("modal", None)
-    return doc
 
 
 def _fmt(name: str, v: float) -> str:
@@ -56,12 +50,6 @@ def format_table(truth: dict[str, float], results: dict[str, dict]) -> str:
 def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | None = None,
              waves: int | None = None, report: Callable[[str], None] = print) -> dict:
     """Run the demo into ``out_dir``; return the JSON-ready summary."""
-    from .acquisition import AcquisitionSession
-    from .analysis import analyze_run
-    from .runstore import RunStore
-    from .specimen import load_specimen
-    from . import identification as idn
-
     t_start = time.perf_counter()
     out = Path(out_dir)
     try:
@@ -78,9 +66,7 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
         report(f"[{time.perf_counter() - t_start:6.1f} s] {msg}")
 
     step(f"1/5 acquiring on the simulated rig: {spec.name}")
-    with RunStore(run, "a") as store:
-        session = AcquisitionSession("default", spec, store, backend="mock", seed=seed)
-        summary = session.run(hits, waves)
+    summary = services.acquire(run, "default", spec, backend="mock", seed=seed, hits=hits, waves=waves)
     rec = summary["recorded"]
     step(f"    recorded {rec['hammer']} hammer hits and {rec['wave']} wave shots -> {run}")
     if not summary["complete"]:
@@ -88,7 +74,7 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
 
     step("2/5 analysing: resonance peaks and CWT group velocities")
     features_path = out / "features.json"
-    features = analyze_run(run, features_path)
+    features = services.run_analysis(run, out=features_path).features
     n_modes = len(features.get("modal", {}).get("frequencies_hz", []))
     n_waves = sum(len(w.get("frequency_hz", [])) for w in features.get("waves", []))
     step(f"    {n_modes} resonances, {n_waves} group-velocity points -> {features_path}")
@@ -96,30 +82,24 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     step("3/5 identifying: modal only, waves only, combined")
     results: dict[str, dict] = {}
     for ds in DATASETS:
-        doc = _subset(features, ds)
+        doc = services.select_data(features, ds)
         if ds != "combined" and not doc.get("modal" if ds == "modal" else "waves"):
             step(f"    {ds}: no data")
             continue
-        problem = idn.problem_from_features(doc, base_dir=out, src=str(features_path))
-        est = idn.run(problem)
-        results[ds] = est.to_dict()
-        step(f"    {ds}: {'converged' if est.converged else 'NOT converged'} in {est.seconds:.1f} s")
-    with RunStore(run, "a") as store:
-        for ds, res in results.items():
-            store.write_result("identification" if ds == "combined" else f"identification_{ds}", res)
+        results[ds] = res = services.run_identification(doc, base_dir=out, src=str(features_path))
+        step(f"    {ds}: {'converged' if res['converged'] else 'NOT converged'} in {res['seconds']:.1f} s")
+    for ds, res in results.items():
+        services.store_result(run, "identification" if ds == "combined" else f"identification_{ds}", res)
 
     step("4/5 identified vs true constants")
     table = format_table(truth, results)
     report(table)
 
     step("5/5 diagnosing the sim-to-real gap; writing figures and the report")
-    from .diagnosis import plot_gap, run_diagnosis
-    gap = run_diagnosis(features, base_dir=out, src=str(features_path))
+    gap = services.run_diagnosis(features, base_dir=out, src=str(features_path))
     plot_gap(gap, out / "gap.png")
-    with RunStore(run, "a") as store:
-        store.write_result("diagnosis", gap)
+    services.store_result(run, "diagnosis", gap)
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
-    from .report import write_report
     html = write_report(run, out / "report.html")
     step(f"done: {run}, {features_path}, {out / 'gap.png'}, {html}")
 

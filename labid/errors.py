@@ -13,3 +13,7 @@ class UserError(Exception):
         self.file, self.key, self.detail = file, key, message
         where = ": ".join(x for x in (file, key) if x)
         super().__init__(f"{where}: {message}" if where else message)
+
+
+class Cancelled(Exception):
+    """Raised by a long job (identification, multi-start) that stops early on request."""

@@ -8,10 +8,11 @@ not hold is replaced by a one-line note saying what is missing.
 Everything shown is read from the run file: the configuration texts, the raw
 shots and the ``/results`` groups written by the workflow (analysis,
 identification, diagnosis, gui). Figures are drawn with matplotlib (Agg).
-Display-only transforms of raw data (an averaged amplitude spectrum, a
-scalogram with ``engine.waves.cwt``) are computed here when the analysis did
-not store its own curves; picks, velocities, constants and the diagnosis
-always come from the workflow's results, never recomputed.
+The run is read and display-only transforms of raw data (an averaged
+amplitude spectrum, a scalogram, the SAFE curves) are computed through
+``labid.services``, when the analysis did not store its own curves; picks,
+velocities, constants and the diagnosis always come from the workflow's
+results, never recomputed.
 """
 from __future__ import annotations
 
@@ -21,91 +22,16 @@ import io
 import math
 import time
 import tomllib
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from . import services
 from .errors import UserError
-
-#: where the workflow's results may sit under /results (first match wins)
-FEATURES_GROUPS = ("features", "analysis/features", "analysis")
-IDENT_GROUPS = ("identification", "identify")
-GAP_GROUPS = ("diagnosis", "gap", "diagnose")
-
-
-@dataclass
-class RunData:
-    """What the report (and the panel) reads from a run file."""
-
-    path: str
-    specimen_toml: str = ""
-    rig_toml: str = ""
-    attrs: dict = field(default_factory=dict)
-    counts: dict = field(default_factory=dict)
-    hammer: list = field(default_factory=list)
-    wave: list = field(default_factory=list)
-    results: dict = field(default_factory=dict)
-
-
-def load_run(path: str | Path, max_shots: int = 20) -> RunData:
-    """Read configuration, shots (at most ``max_shots`` per kind) and every results group."""
-    from .runstore import RunStore
-    with RunStore(path, "r") as st:
-        rd = RunData(str(path), st.specimen_toml(), st.rig_toml())
-        rd.attrs = st.attributes()
-        rd.counts = {k: st.n_shots(k) for k in ("hammer", "wave")}
-        if rd.counts["hammer"] and max_shots:
-            rd.hammer = st.shots("hammer", limit=max_shots)
-        if rd.counts["wave"] and max_shots:
-            rd.wave = st.shots("wave", limit=max_shots)
-        for name in st.result_names():
-            try:
-                rd.results[name] = decode_group(st.read_group(name))
-            except (KeyError, ValueError, OSError):
-                continue
-    return rd
-
-
-def decode_group(g: Any) -> Any:
-    """A results group as written by the panel: its JSON copy when it has one."""
-    if isinstance(g, dict) and isinstance(g.get("json"), str):
-        import json
-        try:
-            return json.loads(g["json"])
-        except ValueError:
-            return g
-    return g
-
-
-def lookup(results: dict, paths: tuple[str, ...]) -> Any:
-    """The first of ``paths`` ('a/b') present in the nested results dict, else None."""
-    for p in paths:
-        node: Any = results
-        for part in p.split("/"):
-            if isinstance(node, dict) and part in node:
-                node = node[part]
-            else:
-                node = None
-                break
-        if node is not None:
-            return node
-    return None
-
-
-def features_of(rd: RunData) -> dict:
-    """The measured features (CONTRACT section 2) stored in the run, or {}."""
-    f = lookup(rd.results, FEATURES_GROUPS)
-    if isinstance(f, dict) and isinstance(f.get("features"), dict):
-        f = f["features"]
-    if isinstance(f, dict) and isinstance(f.get("json"), str):
-        import json
-        try:
-            return json.loads(f["json"])
-        except ValueError:
-            return {}
-    return f if isinstance(f, dict) and ("modal" in f or "waves" in f) else {}
+from .rig import rig_from_text
+from .services import GAP_GROUPS, IDENT_GROUPS, RunData, features_of, lookup
+from .specimen import specimen_from_dict
 
 
 def _waves_list(w: Any) -> list[dict]:
@@ -118,8 +44,7 @@ def _waves_list(w: Any) -> list[dict]:
 def _fig_png(fig) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    import matplotlib.pyplot as plt
-    plt.close(fig)
+    _plt().close(fig)
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
@@ -128,25 +53,12 @@ def _img(b64: str, alt: str) -> str:
 
 
 def _plt():
+    """pyplot on the Agg backend, imported when the first figure is drawn: the panel imports
+    this module at start and does not pay matplotlib's 0.3 s until a report is written."""
     import matplotlib
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
     return plt
-
-
-def average_spectrum(records: list) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """Display spectrum of the hammer shots: the summed normalised indicator of
-    ``engine.modal`` over the accelerometer channels (H1 when a force is recorded)."""
-    from engine import modal
-    if not records:
-        return None
-    r0 = records[0]
-    acc = [c.name for c in r0.channels if c.kind == "accelerometer"] or [c.name for c in r0.channels]
-    force = next((c.name for c in r0.channels if c.kind == "force"), None)
-    x = np.array([[r.scaled(c) for c in acc] for r in records])
-    F = np.array([r.scaled(force) for r in records]) if force else None
-    spec = modal.spectra(x, r0.timing.rate_hz, F, pretrigger=r0.timing.pretrigger, channels=acc)
-    return spec.frequencies_hz, modal.indicator(spec), spec.kind
 
 
 def fig_spectrum(rd: RunData, feats: dict) -> str | None:
@@ -157,7 +69,7 @@ def fig_spectrum(rd: RunData, feats: dict) -> str | None:
         y = y if y.ndim == 1 else (y ** 2).sum(axis=0)
         label = "stored spectrum"
     else:
-        got = average_spectrum(rd.hammer)
+        got = services.average_spectrum(rd.hammer)
         if got is None:
             return None
         f, y, kind = got
@@ -182,40 +94,19 @@ def fig_spectrum(rd: RunData, feats: dict) -> str | None:
 
 
 def _model_frequencies(rd: RunData) -> np.ndarray:
-    ident = lookup(rd.results, IDENT_GROUPS)
-    blocks = ident.get("blocks") if isinstance(ident, dict) else None
-    out = []
-    if isinstance(blocks, dict):
-        for b in blocks.values():
-            if isinstance(b, dict) and b.get("kind") == "modal" and "predicted" in b:
-                out.extend(np.atleast_1d(np.asarray(b["predicted"], float)))
-    return np.asarray(out)
+    return services.model_frequencies(lookup(rd.results, IDENT_GROUPS))
 
 
 def fig_scalogram(rd: RunData, feats: dict) -> str | None:
-    from engine import waves as W
     if not rd.wave:
         return None
     rec = rd.wave[0]
     chans = [c.name for c in rec.channels]
     name = chans[-1]
-    x = rec.scaled(name)
-    fs = rec.timing.rate_hz
     ridge = lookup(rd.results, ("analysis/arrivals", "analysis/waves/arrivals"))
-    wl = W.Wavelet(2.0, 5.0)
-    wname = ridge.get("wavelet") if isinstance(ridge, dict) else None
-    if isinstance(wname, str) and wname.startswith("cmor") and "-" in wname:
-        b, c = wname[4:].split("-", 1)
-        wl = W.Wavelet(float(b), float(c))
-    band = lookup(rd.results, ("analysis/settings/wave_band_hz",))
-    if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
-        fmin, fmax = float(band[0]), float(band[1])
-    else:
-        fmax = min(0.4 * fs, 200e3)
-        fmin = fmax / 20
-    freqs = np.linspace(fmin, fmax, 80)
-    Wm = np.abs(W.cwt(x, fs, freqs, wl))
-    t = rec.time()
+    an = rd.results.get("analysis")
+    sc = services.scalogram(rec, name, an if isinstance(an, dict) else None, n_freqs=80)
+    t, freqs, Wm = sc.times_s, sc.frequencies_hz, sc.magnitude
     plt = _plt()
     fig, ax = plt.subplots(figsize=(9, 3.6))
     ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
@@ -225,7 +116,7 @@ def fig_scalogram(rd: RunData, feats: dict) -> str | None:
         ax.legend(loc="upper right", fontsize=8)
     ax.set_xlabel("time after trigger (µs)")
     ax.set_ylabel("frequency (kHz)")
-    ax.set_title(f"|CWT| of {rec.meta.get('shot', 'wave shot')}, channel {name} ({wl.name})", fontsize=9)
+    ax.set_title(f"|CWT| of {rec.meta.get('shot', 'wave shot')}, channel {name} ({sc.wavelet})", fontsize=9)
     return _fig_png(fig)
 
 
@@ -241,28 +132,23 @@ def fig_dispersion(rd: RunData, feats: dict) -> str | None:
         s = np.asarray(w.get("sigma_m_s", np.zeros_like(v)), float)
         ax.errorbar(f / 1e3, v, yerr=s, fmt="o", ms=3, capsize=2,
                     label=f"measured {w.get('mode', '')} {w.get('direction_deg', 0):g}°")
-    ident = lookup(rd.results, IDENT_GROUPS)
-    params = {n: float(p["value"]) for n, p in ((ident or {}).get("parameters") or {}).items()
-              if isinstance(p, dict) and "value" in p} if isinstance(ident, dict) else {}
+    params = services.parameters_of(lookup(rd.results, IDENT_GROUPS))
     lam = _laminate(rd)
     if lam is not None:
-        from engine import safe
         for w in ws:
             f = np.asarray(w.get("frequency_hz", []), float)
             if f.size < 2:
                 continue
             grid = np.linspace(f.min(), f.max(), 60)
             mode, d = str(w.get("mode", "A0")), float(w.get("direction_deg", 0.0))
-            for label, la, style in (("nominal", lam, "--"), ("identified", None, "-")):
+            for label, p, style in (("nominal", None, "--"), ("identified", params, "-")):
+                if label == "identified" and not params:
+                    continue
                 try:
-                    if la is None:
-                        if not params:
-                            continue
-                        la = lam.with_params(params)
-                    v = np.asarray(safe.group_velocity(la, grid, mode, d), float)
+                    v = services.model_group_velocity(lam, grid, mode, d, p)
                 except (ValueError, KeyError, TypeError):
                     continue
-                ax.plot(grid / 1e3, v, style, color="#2ca02c" if la is not lam else "0.4",
+                ax.plot(grid / 1e3, v, style, color="#2ca02c" if p else "0.4",
                         label=f"SAFE {mode}, {label} constants")
     ax.set_xlabel("frequency (kHz)")
     ax.set_ylabel("group velocity (m/s)")
@@ -274,7 +160,6 @@ def fig_dispersion(rd: RunData, feats: dict) -> str | None:
 def _laminate(rd: RunData):
     """The laminate of the run's specimen, or None."""
     try:
-        from .specimen import specimen_from_dict
         return specimen_from_dict(tomllib.loads(rd.specimen_toml), "run file").laminate
     except Exception:  # noqa: BLE001 - the figure just lacks the model curve
         return None
@@ -343,7 +228,6 @@ def section_setup(rd: RunData) -> str:
     out = []
     if rd.specimen_toml:
         try:
-            from .specimen import specimen_from_dict
             sp = specimen_from_dict(tomllib.loads(rd.specimen_toml), "run file")
             lam = sp.laminate
             angles = ", ".join(f"{p.angle_deg:g}" for p in lam.plies) if hasattr(lam.plies[0], "angle_deg") else ""
@@ -364,7 +248,6 @@ def section_setup(rd: RunData) -> str:
         out.append(_note("no specimen recorded in this run"))
     if rd.rig_toml:
         try:
-            from .rig import rig_from_text
             rig = rig_from_text(rd.rig_toml, "run file")
             rows = [[html.escape(d.name), d.role, html.escape(d.product), f"{d.timing.rate_hz:g}",
                      f"{d.timing.samples}", f"{d.timing.pretrigger}",
@@ -381,16 +264,9 @@ def section_setup(rd: RunData) -> str:
                f"backend {html.escape(', '.join(backends) or '—')}; "
                f"{html.escape(str(rd.attrs.get('creator', '')))}, file created "
                f"{html.escape(str(rd.attrs.get('file_time', '')))}.</p>")
-    gui = rd.results.get("gui")
-    if isinstance(gui, dict) and gui.get("state_json"):
-        import json
-        try:
-            st = json.loads(gui["state_json"]).get("setup", {})
-            t = st.get("temperature_c")
-            if isinstance(t, (int, float)) and math.isfinite(t):
-                out.append(f"<p>Air temperature (environment probe): {t:.2f} °C</p>")
-        except ValueError:
-            pass
+    t = services.session_state(rd).get("setup", {}).get("temperature_c")
+    if isinstance(t, (int, float)) and math.isfinite(t):
+        out.append(f"<p>Air temperature (environment probe): {t:.2f} °C</p>")
     return "".join(out)
 
 
@@ -472,7 +348,7 @@ border-left:4px solid #e0b040}img{max-width:100%}"""
 
 def build_report(run: str | Path) -> str:
     """The HTML text of the report of run file ``run``."""
-    rd = load_run(run)
+    rd = services.open_run(run, max_shots=20)
     feats = features_of(rd)
     parts = [f"<h1>labid test report — {html.escape(Path(run).name)}</h1>",
              f"<p>Generated {time.strftime('%Y-%m-%d %H:%M:%S %Z')} from {html.escape(str(run))}.</p>",

@@ -15,7 +15,7 @@ from labid.acquisition import AcquisitionSession
 from labid.cli import main
 from labid.errors import UserError
 from labid.rig import load_rig, read_rig_text, rig_from_text
-from labid.runstore import RunStore
+from labid.store import RunStore
 from labid.specimen import load_specimen
 from mock_hw.rig import SimulatedDevice
 

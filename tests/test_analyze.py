@@ -75,7 +75,7 @@ def test_wave_features_match_the_safe_curve(analysed):
 @pytest.mark.slow
 def test_results_stored_in_the_run_and_readable(analysed, run_file):
     from labid.features import read_features, specimen_of
-    from labid.runstore import RunStore
+    from labid.store import RunStore
     out, feats, _ = analysed
     doc = read_features(out)
     assert specimen_of(doc, out.parent, str(out)).laminate.thickness == pytest.approx(1.6e-3, rel=1e-3)
@@ -85,8 +85,9 @@ def test_results_stored_in_the_run_and_readable(analysed, run_file):
     assert g["spectrum"]["frequencies_hz"].shape == g["spectrum"]["indicator"].shape
     np.testing.assert_allclose(g["peaks"]["frequency_hz"], feats["modal"]["frequencies_hz"])
     assert g["arrivals"]["times_s"].size == g["arrivals"]["frequencies_hz"].size > 0
-    # the report module finds the features where it looks for them
-    from labid.report import FEATURES_GROUPS, decode_group, lookup
+    # the services (which the report and the panel read through) find the features there
+    from labid.services import FEATURES_GROUPS, lookup
+    from labid.store import decode_result as decode_group
     assert decode_group(lookup({"analysis": g}, FEATURES_GROUPS)) == feats
 
 
@@ -114,7 +115,7 @@ def test_bad_options_exit_2(run_file_empty: Path, capsys):
 def run_file_empty(tmp_path: Path) -> Path:
     """A run file with the configuration but no shots."""
     from importlib import resources
-    from labid.runstore import RunStore
+    from labid.store import RunStore
     p = tmp_path / "empty.h5"
     with RunStore(p, "a") as st:
         st.write_config(resources.files("labid.data").joinpath("cfrp_12ply.toml").read_text(),
@@ -182,7 +183,7 @@ def test_aluminium_hammer_source_to_sensor(tmp_path: Path):
     assert any("cmor2-1" in n and "source to sensor" in n for n in feats["analysis"]["notes"])
     assert feats["rig"]["wave_path_m"] == pytest.approx(0.375)
     # S0, separated by its own gate, is measured and stored in the run but kept out of the features
-    from labid.runstore import RunStore
+    from labid.store import RunStore
     with RunStore(run, "r") as st:
         stored = st.read_group("analysis")["waves"]
     assert "S0_0" in stored and "A0_0" in stored
@@ -195,7 +196,7 @@ def test_aluminium_hammer_s0_against_safe(tmp_path: Path):
     tail of the ~100 x stronger A0 biased it by 2-5 %, docs/wavelet-bias.md), and
     everywhere within 2.5 of its stated sigma."""
     from engine import safe
-    from labid.runstore import RunStore
+    from labid.store import RunStore
     from labid.specimen import load_specimen
     rig = tmp_path / "alu_rig.toml"
     rig.write_text(ALU_RIG)

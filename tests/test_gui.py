@@ -16,7 +16,7 @@ from PySide6.QtCore import Qt, QTimer  # noqa: E402
 
 from labid.gui.main_window import MainWindow  # noqa: E402
 from labid.rig import read_rig_text  # noqa: E402
-from labid.runstore import RunStore  # noqa: E402
+from labid.store import RunStore  # noqa: E402
 
 ART = Path(__file__).parent / "artifacts"
 SIZE = (1366, 768)

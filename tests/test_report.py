@@ -14,7 +14,7 @@ import pytest
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 from labid.report import build_report, write_report
 from labid.rig import read_rig_text
-from labid.runstore import RunStore
+from labid.store import RunStore
 from labid.specimen import BUILTIN
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -15,7 +15,7 @@ import pytest
 
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 from labid.errors import UserError
-from labid.runstore import RunStore
+from labid.store import RunStore
 
 CH = (ChannelConfig("force", "force", "ai0", sensitivity=2.25e-3, coupling="IEPE"),
       ChannelConfig("acc1", "accelerometer", "ai1", sensitivity=1.02e-3, x=0.02, y=0.03, mass_kg=0.002))
@@ -129,7 +129,7 @@ WRITER = textwrap.dedent("""
     import sys, hashlib, numpy as np
     sys.path.insert(0, {root!r})
     from tests.test_runstore import record
-    from labid.runstore import RunStore
+    from labid.store import RunStore
     with RunStore(sys.argv[1]) as s:
         i = s.n_shots()
         while True:
@@ -192,7 +192,7 @@ def test_writer_killed_outside_swmr_mode_is_readable_and_repaired(tmp_path):
         s.append_shot(record(0), "hammer")
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     code = (f"import sys, time; sys.path.insert(0, {root!r})\n"
-            "from labid.runstore import RunStore\n"
+            "from labid.store import RunStore\n"
             f"s = RunStore({str(p)!r})\n"
             "s.write_group('features', {'f': [1.0, 2.0]})\n"
             "print('ready', flush=True); time.sleep(60)\n")
@@ -226,3 +226,19 @@ def test_write_result_keeps_a_json_copy_even_when_hdf5_cannot_hold_the_structure
     doc = json.loads(diag["json"])
     assert doc["effects"][0] == {"name": "sensor_mass", "magnitude": 0.003}
     assert doc["parameters"]["E"]["std"] is None                       # NaN -> null, valid JSON
+
+
+def test_lookup3_reproduces_the_superblock_checksum_hdf5_writes(tmp_path):
+    """The reason h5repair keeps its own lookup3: h5py has no h5clear, so clearing the
+    flags means rewriting the superblock checksum, which must equal the library's."""
+    from labid.store.h5repair import lookup3
+    for libver in ("v108", "latest"):
+        p = tmp_path / f"sb_{libver}.h5"
+        with h5py.File(p, "w", libver=libver) as f:
+            f.attrs["x"] = 1
+        head = p.read_bytes()[:64]
+        assert head[8] in (2, 3)                       # superblock version 2/3 (checksummed)
+        n = 12 + 4 * head[9]
+        assert lookup3(head[:n]) == int.from_bytes(head[n:n + 4], "little")
+    # Bob Jenkins' published test vector of hashlittle: "Four score and seven years ago" -> 0x17770551
+    assert lookup3(b"Four score and seven years ago") == 0x17770551

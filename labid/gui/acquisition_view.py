@@ -1,9 +1,9 @@
 """Acquisition tab: live traces and spectra, trigger settings, overload lights, progress, abort.
 
-The work is ``labid.acquisition.AcquisitionSession.run`` (the same object as
-``labid acquire``) in a background job; every accepted shot is appended and
-flushed to the run file by the session itself. The view only taps the device
-reads to show each record as it arrives (accepted or not).
+The work is ``labid.services.acquire`` (the same session as ``labid acquire``)
+in a background job; every accepted shot is appended and flushed to the run
+file by the session itself. The view only receives each device read
+(``on_record``) to show each record as it arrives (accepted or not).
 """
 from __future__ import annotations
 
@@ -16,45 +16,12 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QGridLayo
                                QHBoxLayout, QLabel, QLineEdit, QListWidget, QProgressBar,
                                QPushButton, QSpinBox, QSplitter, QVBoxLayout, QWidget)
 
-from ..acquisition import AcquisitionSession
+from .. import services
 from ..errors import UserError
 from .rigtext import set_device_values
 
 COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf"]
 MAX_POINTS = 4000
-
-
-class _Tap:
-    """A device whose reads are also shown live (delegates the protocol)."""
-
-    def __init__(self, dev, kind: str, on_record):
-        self._dev, self._kind, self._on_record = dev, kind, on_record
-        self.name = getattr(dev, "name", kind)
-
-    def configure(self, *a, **kw):
-        return self._dev.configure(*a, **kw)
-
-    def arm(self):
-        return self._dev.arm()
-
-    def read(self, timeout_s: float = 10.0):
-        rec = self._dev.read(timeout_s)
-        self._on_record(self._kind, rec)
-        return rec
-
-    def close(self):
-        return self._dev.close()
-
-
-class LiveSession(AcquisitionSession):
-    """AcquisitionSession whose device reads are reported to ``on_record(kind, record)``."""
-
-    def __init__(self, *a, on_record=None, **kw):
-        super().__init__(*a, **kw)
-        self._on_record = on_record or (lambda kind, rec: None)
-
-    def device(self, kind: str):
-        return _Tap(super().device(kind), kind, self._on_record)
 
 
 def display_record(kind: str, rec) -> dict:
@@ -304,12 +271,10 @@ class AcquisitionView(QWidget):
         self.main.set_run_path(str(path), reload=False)
 
         def work(progress, should_stop):
-            from ..runstore import RunStore
-            with RunStore(path, "a") as store:
-                session = LiveSession(rig, spec, store, backend=backend, effects=effects, seed=seed,
-                                      on_record=lambda k, rec: progress(("record", display_record(k, rec))))
-                return session.run(n_hits, n_waves, progress=lambda ev: progress(("event", ev)),
-                                   should_stop=should_stop)
+            return services.acquire(path, rig, spec, backend=backend, effects=effects, seed=seed,
+                                    hits=n_hits, waves=n_waves, progress=lambda ev: progress(("event", ev)),
+                                    should_stop=should_stop,
+                                    on_record=lambda k, rec: progress(("record", display_record(k, rec))))
 
         self.job = self.main.start_job("acquisition", work, self._done, on_progress=self._progress,
                                        on_failed=self._failed)

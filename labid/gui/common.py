@@ -1,21 +1,10 @@
-"""Helpers shared by the views: the 'not available' banner, back-end probing, plot style."""
+"""Helpers shared by the views: the notice banner, plot style."""
 from __future__ import annotations
-
-import importlib
 
 import pyqtgraph as pg
 from PySide6.QtWidgets import QLabel
 
 pg.setConfigOptions(antialias=True, foreground="k", background="w")
-
-
-def backend(module: str, *names: str):
-    """The workflow module ``module`` if it exists and defines ``names``, else None."""
-    try:
-        mod = importlib.import_module(module)
-    except ImportError:
-        return None
-    return mod if all(hasattr(mod, n) for n in names) else None
 
 
 class Banner(QLabel):

@@ -1,6 +1,8 @@
-"""Gap tab: the sim-to-real diagnosis (``labid.diagnosis.run_diagnosis``, as ``labid
+"""Gap tab: the sim-to-real diagnosis (``labid.services.run_diagnosis``, as ``labid
 diagnose``): verdict, where the gap lies, ranked effects, residuals before/after."""
 from __future__ import annotations
+
+import tomllib
 
 import numpy as np
 import pyqtgraph as pg
@@ -8,7 +10,8 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QTableWidget,
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
-from .common import Banner, backend, plot
+from .. import services
+from .common import Banner, plot
 
 
 def _f(v, fmt=".3g") -> str:
@@ -65,12 +68,6 @@ class GapView(QWidget):
         return f if f is not None else self.main.features()
 
     def reload(self) -> None:
-        self._diag = backend("labid.diagnosis", "run_diagnosis")
-        if self._diag is None:
-            self.banner.warn("not available yet: the gap diagnosis workflow (labid.diagnosis) "
-                             "has not landed in this build")
-            self.run_btn.setEnabled(False)
-            return
         doc = self.features()
         if not doc:
             self.banner.info("no measured features yet: acquire and analyse first (or load a features "
@@ -85,14 +82,12 @@ class GapView(QWidget):
 
     def diagnose(self) -> None:
         doc = self.features()
-        if self._diag is None or not doc:
+        if not doc:
             self.main.message("diagnosis: no features", error=True)
             return
-        diag = self._diag
         doc = dict(doc)
         if not doc.get("specimen"):
             spec_text = self.main.setup.specimen_box.text()
-            import tomllib
             try:
                 doc["specimen"] = tomllib.loads(spec_text)
             except tomllib.TOMLDecodeError:
@@ -100,7 +95,7 @@ class GapView(QWidget):
                 return
 
         def work(progress, should_stop):
-            return diag.run_diagnosis(doc, ".", "<features>")
+            return services.run_diagnosis(doc, ".", "<features>")
 
         self.job = self.main.start_job("diagnosis", work, self._done, on_failed=self._failed)
         if self.job is not None:

@@ -1,15 +1,13 @@
 """Identification tab: parameters and data (modal / waves / combined), estimate ± std,
 convergence history, multi-start scatter and the identifiability view.
 
-The work is ``labid.identification`` (the same workflow as ``labid identify``):
-``problem_from_features`` -> ``run`` and ``random_starts`` -> ``multi_start``,
-in a background job. The data blocks are wrapped so that the job reports each
+The work is ``labid.services.run_identification`` (the workflow of ``labid
+identify``, with a multi-start study) in a background job: it reports each
 model evaluation and stops at the next one when cancelled.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pyqtgraph as pg
@@ -18,9 +16,9 @@ from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, 
                                QGroupBox, QHBoxLayout, QHeaderView, QLabel, QPushButton, QRadioButton,
                                QLineEdit, QSpinBox, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
+from .. import services
 from ..errors import UserError
-from .common import Banner, backend, empty_note, plot
-from .worker import Cancelled
+from .common import Banner, empty_note, plot
 
 DATA = ("modal", "waves", "combined")
 SYMBOLS = ("o", "s", "t", "d", "+", "x")
@@ -33,35 +31,6 @@ def _unit(name: str) -> tuple[str, float]:
     if name == "density":
         return "kg/m³", 1.0
     return "GPa", 1e-9
-
-
-def select_data(doc: dict, data: str) -> dict:
-    """The features document restricted to 'modal', 'waves' or 'combined' data."""
-    out = dict(doc)
-    if data == "modal":
-        out.pop("waves", None)
-    elif data == "waves":
-        out.pop("modal", None)
-    return out
-
-
-def cancellable(blocks, should_stop, progress):
-    """Data blocks whose model evaluations report progress and honour cancellation."""
-    count = {"n": 0}
-
-    def wrap(fn):
-        if fn is None:
-            return None
-
-        def inner(*a, **kw):
-            if should_stop():
-                raise Cancelled()
-            count["n"] += 1
-            progress(("eval", count["n"]))
-            return fn(*a, **kw)
-        return inner
-
-    return [replace(b, predict=wrap(b.predict), jacobian=wrap(b.jacobian)) for b in blocks]
 
 
 class IdentificationView(QWidget):
@@ -168,17 +137,11 @@ class IdentificationView(QWidget):
         return self.main.features()
 
     def load_features_file(self, path: str) -> bool:
-        ident = backend("labid.identification", "load_features")
         try:
-            doc = ident.load_features(path)
+            doc = services.load_features_file(path)
         except UserError as e:
             self.main.message(str(e), error=True)
             return False
-        from pathlib import Path
-        spec = doc.get("specimen")
-        if isinstance(spec, str) and spec not in ("cfrp", "aluminium"):
-            p = Path(spec)
-            doc["specimen"] = str(p if p.is_absolute() else Path(path).parent / p)
         self.features_file_doc = doc
         self.source_label.setText(f"features: {path}")
         self.reload()
@@ -210,13 +173,6 @@ class IdentificationView(QWidget):
         return next(d for d, r in self.data_radios.items() if r.isChecked())
 
     def reload(self) -> None:
-        ident = backend("labid.identification", "problem_from_features", "run")
-        self._ident = ident
-        if ident is None:
-            self.banner.warn("not available yet: the identification workflow (labid.identification) "
-                             "has not landed in this build")
-            self.run_btn.setEnabled(False)
-            return
         doc = self.features()
         if not doc:
             self.banner.info("no measured features yet: acquire and analyse (Modes, Waves tabs), "
@@ -254,9 +210,8 @@ class IdentificationView(QWidget):
 
     # -- the job -------------------------------------------------------------------------
     def identify(self) -> None:
-        ident = self._ident
         doc = self.features()
-        if ident is None or not doc:
+        if not doc:
             self.main.message("identification: no features to identify from", error=True)
             return
         data = self.data_choice()
@@ -271,33 +226,17 @@ class IdentificationView(QWidget):
             return
         method = self.method_combo.currentText()
         try:
-            start = ident.parse_assignments(self.start_edit.text(), "start")
+            start = services.parse_start(self.start_edit.text(), "start")
         except UserError as e:
             self.main.message(str(e), error=True)
             return
         n_starts = self.starts_spin.value()
-        doc = select_data(doc, data)
+        doc = services.select_data(doc, data)
 
         def work(progress, should_stop):
-            problem = ident.problem_from_features(doc, specimen=spec)
-            problem.blocks = cancellable(problem.blocks, should_stop, progress)
-            est = ident.run(problem, names, start or None, method=method)
-            out = est.to_dict()
-            out["data"] = data
-            out["specimen"] = problem.specimen.name
-            if n_starts:
-                st0 = {n: start.get(n, problem.nominal[n]) for n in est.names}
-                starts = ident.random_starts(st0, est.names, n_starts, seed=0)
-                runs = []
-                for i, st in enumerate(starts):
-                    if should_stop():
-                        raise Cancelled()
-                    runs += ident.multi_start(doc, [st], est.names, specimen=spec, method=method,
-                                              max_workers=1)
-                    progress(("start", i + 1, n_starts))
-                out["multi_start"] = runs
-            out["nominal"] = {n: float(problem.nominal[n]) for n in est.names}
-            return out
+            return services.run_identification(doc, specimen=spec, names=names, start=start, method=method,
+                                               n_starts=n_starts, data=data, progress=progress,
+                                               should_stop=should_stop)
 
         self.job = self.main.start_job("identification", work, self._done, on_progress=self._progress,
                                        on_failed=self._failed)

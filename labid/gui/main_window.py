@@ -2,20 +2,28 @@
 
 State shared by the views is the run file: each view reads what the workflow
 objects wrote there (``/results/...``) and the window stores its own session
-state under ``/results/gui`` (``RunStore.write_group('gui', ...)``), so
-reopening a run restores the views.
+state under ``/results/gui`` (``labid.services.save_session``), so reopening a
+run restores the views. Every access to the run file and the workflows goes
+through ``labid.services``.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any, Callable
 
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QPushButton, QTabWidget)
 
+from .. import services
 from ..errors import UserError
-from .analysis_link import ANALYSIS_API, analysis_job, analysis_summary, save_picks, show_analysis
+from ..jsonio import to_jsonable
+from ..report import write_report
+from .acquisition_view import AcquisitionView
+from .gap_view import GapView
+from .identification_view import IdentificationView
+from .modes_view import ModesView
+from .setup_view import SetupView
+from .waves_view import WavesView
 from .worker import Job
 
 TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap")
@@ -36,12 +44,6 @@ class MainWindow(QMainWindow):
         self.messages: list[tuple[str, bool]] = []
         self._mem_results: dict[str, dict] = {}
 
-        from .acquisition_view import AcquisitionView
-        from .gap_view import GapView
-        from .identification_view import IdentificationView
-        from .modes_view import ModesView
-        from .setup_view import SetupView
-        from .waves_view import WavesView
         self.setup = SetupView(self)
         self.acquisition = AcquisitionView(self)
         self.modes = ModesView(self)
@@ -154,23 +156,17 @@ class MainWindow(QMainWindow):
 
     def open_run(self, path: str) -> bool:
         """Open an existing run file and restore the views; a bad file shows a message."""
-        from ..runstore import RunStore
         try:
-            with RunStore(path, "r") as store:
-                spec_toml, rig_toml = store.specimen_toml(), store.rig_toml()
-                try:
-                    gui = store.read_group("gui")
-                except KeyError:
-                    gui = {}
+            rd = services.open_run(path)
         except UserError as e:
             self.message(str(e), error=True)
             return False
         except OSError as e:  # h5py oddities on a damaged file
             self.message(f"{path}: cannot read the run file ({e})", error=True)
             return False
-        state = _decode_state(gui)
+        state = services.session_state(rd)
         self.set_run_path(path, reload=False)
-        self.setup.restore(state.get("setup", {}), spec_toml, rig_toml)
+        self.setup.restore(state.get("setup", {}), rd.specimen_toml, rd.rig_toml)
         for key, view in self.views.items():
             if key != "setup" and hasattr(view, "restore"):
                 view.restore(state.get(key, {}))
@@ -193,29 +189,21 @@ class MainWindow(QMainWindow):
             return self._mem_results[name]
         if not self.run_path or not Path(self.run_path).exists():
             return None
-        from ..report import decode_group
-        from ..runstore import RunStore
         try:
-            with RunStore(self.run_path, "r") as store:
-                return decode_group(store.read_group(name))
-        except KeyError:
-            return None
+            return services.read_result(self.run_path, name)
         except (UserError, OSError) as e:
             self.message(str(e), error=True)
             return None
 
     def store_results(self, name: str, data: dict) -> bool:
         """Write ``data`` under /results/<name> (structured + a JSON copy)."""
-        from ..jsonio import to_jsonable
-        from ..runstore import RunStore
         if not self.run_path:
             self._mem_results[name] = to_jsonable(data)
             self.message(f"{name}: kept in memory only (no run file)", error=True)
             return False
         self._mem_results.pop(name, None)
         try:
-            with RunStore(self.run_path, "a") as store:
-                store.write_result(name, data)
+            services.store_result(self.run_path, name, data)
         except (UserError, OSError) as e:
             self._mem_results[name] = to_jsonable(data)
             self.message(f"{name}: not saved in the run file: {e}", error=True)
@@ -226,9 +214,8 @@ class MainWindow(QMainWindow):
         """The measured features (CONTRACT section 2) of the run, or None."""
         if not self.run_path or not Path(self.run_path).exists():
             return None
-        from ..report import features_of, load_run
         try:
-            doc = features_of(load_run(self.run_path, max_shots=0))
+            doc = services.stored_features(self.run_path)
         except (UserError, OSError):
             return None
         return doc or None
@@ -236,34 +223,25 @@ class MainWindow(QMainWindow):
     def specimen_for_features(self, doc: dict):
         """The specimen a features document refers to (inline, path or built-in), else
         the one of the run / the Setup tab."""
-        from ..specimen import load_specimen, specimen_from_dict
-        s = doc.get("specimen")
-        if isinstance(s, dict):
-            return specimen_from_dict(s, "features#specimen")
-        if isinstance(s, str) and s:
-            return load_specimen(s)
+        spec = services.specimen_for_features(doc)
+        if spec is not None:
+            return spec
         spec = self.setup.specimen()
         if spec is None:
             raise UserError("the specimen on the Setup tab is not valid; fix it first")
         return spec
 
-    # -- analysis (labid.analysis, as 'labid analyze') --------------------------------------------
-    def analysis_link(self):
-        """The analysis workflow module if it has landed, else None."""
-        from .common import backend
-        return backend("labid.analysis", *ANALYSIS_API)
-
+    # -- analysis (labid.services.run_analysis, as 'labid analyze') -------------------------------
     def analyze(self) -> None:
         """Run the analysis of the run file (as 'labid analyze') in a background job."""
-        link = self.analysis_link()
-        if link is None or not self.run_path:
-            self.message("analysis: not available (no run file or no analysis workflow)", error=True)
+        if not self.run_path:
+            self.message("analysis: no run file", error=True)
             return
         run = self.run_path
         temperature = self.setup.temperature_c
 
         def work(progress, should_stop):
-            return analysis_job(link, run, temperature, progress, should_stop)
+            return services.run_analysis(run, temperature_c=temperature)
 
         self.start_job("analysis", work, self._analysis_done)
 
@@ -274,11 +252,10 @@ class MainWindow(QMainWindow):
             v.reload()
 
     def save_modal_picks(self, peaks) -> bool:
-        link = self.analysis_link()
-        if link is None or not self.run_path:
+        if not self.run_path:
             return False
         try:
-            save_picks(link, self.run_path, peaks)
+            services.save_picks(self.run_path, peaks)
         except (UserError, OSError, ValueError) as e:
             self.message(f"save picks: {e}", error=True)
             return False
@@ -305,10 +282,8 @@ class MainWindow(QMainWindow):
         if self.busy():
             self.message(f"{self.job.name} is running; save the session when it has finished", error=True)
             return False
-        from ..runstore import RunStore
         try:
-            with RunStore(self.run_path, "a") as store:
-                store.write_group("gui", {"state_json": json.dumps(self.session_state())})
+            services.save_session(self.run_path, self.session_state())
         except UserError as e:
             self.message(str(e), error=True)
             return False
@@ -335,7 +310,6 @@ class MainWindow(QMainWindow):
             self.write_report(p)
 
     def write_report(self, out: str) -> Job | None:
-        from ..report import write_report
         run = self.run_path
 
         def work(progress, should_stop):
@@ -356,11 +330,16 @@ class MainWindow(QMainWindow):
         super().closeEvent(e)
 
 
-def _decode_state(gui: dict) -> dict:
-    text = gui.get("state_json") if isinstance(gui, dict) else None
-    if not text:
-        return {}
-    try:
-        return json.loads(text)
-    except (TypeError, ValueError):
-        return {}
+
+def show_analysis(main: MainWindow, an) -> None:
+    """Show a fresh ``labid.analysis.Analysis`` in the Modes and Waves tabs."""
+    main.modes.set_modal(an.spectrum, an.peaks) if an.spectrum is not None else main.modes.reload()
+    main.waves.set_analysis(an)
+
+
+def analysis_summary(an) -> str:
+    """One line on what an analysis found."""
+    f = an.features
+    n_modes = len((f.get("modal") or {}).get("frequencies_hz", []))
+    n_w = sum(len(w.get("frequency_hz", [])) for w in f.get("waves") or [])
+    return f"{n_modes} resonances, {n_w} group-velocity points"

@@ -2,9 +2,9 @@
 picks; click to add (or, on a pick, remove) a peak; model frequencies overlaid
 after identification.
 
-Picking and editing are ``engine.modal.pick_peaks`` / ``add_peak`` / ``remove_peak``
-as used by the analysis workflow (``labid.analysis``, ``labid analyze``); the
-edited picks go back into the run's features, which identification and
+Picking is the analysis workflow's (``labid analyze``); editing is
+``labid.services.toggle_peak`` on the same spectra; the edited picks go back
+into the run's features (``services.save_picks``), which identification and
 diagnosis read.
 """
 from __future__ import annotations
@@ -15,6 +15,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QTableWidget,
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
+from .. import services
 from .common import Banner, plot
 
 
@@ -60,22 +61,14 @@ class ModesView(QWidget):
 
     # -- data ------------------------------------------------------------------------
     def reload(self) -> None:
-        link = self.main.analysis_link()
-        if link is None:
-            self.banner.warn("not available yet: the analysis workflow (labid.analysis, as "
-                             "'labid analyze') has not landed in this build")
-            self.analyze_btn.setEnabled(False)
-            self._draw()
-            return
         self.analyze_btn.setEnabled(self.main.run_path is not None)
         if self.spec is None:
             res = self.main.read_results("analysis")
             sp = (res or {}).get("spectrum")
             if isinstance(sp, dict) and "frequencies_hz" in sp:
-                from .analysis_link import stored_peaks
                 self.freqs = np.asarray(sp["frequencies_hz"], float)
                 self.indicator = np.asarray(sp["indicator"], float)
-                self.peaks = stored_peaks(res)
+                self.peaks = services.stored_peaks(res)
                 self.banner.info(f"stored analysis of this run: {len(self.peaks)} peaks "
                                  "(click to edit: the spectra are recomputed from the shots)")
             else:
@@ -87,10 +80,9 @@ class ModesView(QWidget):
 
     def set_modal(self, spec, peaks, indicator=None, edited: bool = False) -> None:
         """Show spectra ``spec`` (engine.modal.Spectra) and ``peaks``."""
-        from engine import modal
         self.spec = spec
         self.freqs = spec.frequencies_hz
-        self.indicator = modal.indicator(spec) if indicator is None else np.asarray(indicator)
+        self.indicator = services.spectrum_indicator(spec) if indicator is None else np.asarray(indicator)
         self.peaks = tuple(peaks)
         self.edited = edited
         self.save_btn.setEnabled(edited)
@@ -100,12 +92,7 @@ class ModesView(QWidget):
         self._draw()
 
     def model_frequencies(self) -> np.ndarray:
-        res = self.main.read_results("identification")
-        out = []
-        for b in ((res or {}).get("blocks") or {}).values():
-            if isinstance(b, dict) and b.get("kind") == "modal" and b.get("predicted") is not None:
-                out.extend(np.atleast_1d(np.asarray(b["predicted"], float)))
-        return np.asarray(out)
+        return services.model_frequencies(self.main.read_results("identification"))
 
     # -- editing ----------------------------------------------------------------------------
     def _clicked(self, ev) -> None:
@@ -122,31 +109,21 @@ class ModesView(QWidget):
     def toggle_peak(self, f_hz: float, tol_hz: float | None = None) -> str:
         """Remove the pick within ``tol_hz`` of ``f_hz``, else add one fitted there.
         Returns 'removed', 'added' or an error message."""
-        from engine import modal
         if self.spec is None:
-            from .analysis_link import spectra_of_run
-            link = self.main.analysis_link()
-            if link is None or not self.main.run_path:
+            if not self.main.run_path:
                 return "no spectra"
             try:
-                self.spec = spectra_of_run(link, self.main.run_path)
+                self.spec = services.spectra_of_run(self.main.run_path)
             except Exception as e:  # noqa: BLE001 - shown, not raised
                 self.main.message(f"cannot recompute the spectra: {e}", error=True)
                 return str(e)
             if self.spec is None:
                 return "no spectra"
-        tol = 2 * self.spec.df if tol_hz is None else tol_hz
-        near = [p for p in self.peaks if abs(p.frequency_hz - f_hz) <= tol]
-        if near:
-            self.peaks = modal.remove_peak(self.peaks, f_hz, tol)
-            what = "removed"
-        else:
-            try:
-                self.peaks = modal.add_peak(self.peaks, self.spec, f_hz)
-            except ValueError as e:
-                self.main.message(f"add peak: {e}", error=True)
-                return str(e)
-            what = "added"
+        try:
+            self.peaks, what = services.toggle_peak(self.peaks, self.spec, f_hz, tol_hz)
+        except ValueError as e:
+            self.main.message(f"add peak: {e}", error=True)
+            return str(e)
         self.edited = True
         self.save_btn.setEnabled(True)
         self.main.message(f"peak {what} near {f_hz:.2f} Hz; {len(self.peaks)} peaks (not saved yet)")
@@ -154,9 +131,6 @@ class ModesView(QWidget):
         return what
 
     def save_picks(self) -> bool:
-        link = self.main.analysis_link()
-        if link is None:
-            return False
         ok = self.main.save_modal_picks(self.peaks)
         if ok:
             self.edited = False

@@ -11,6 +11,7 @@ from PySide6.QtWidgets import (QButtonGroup, QComboBox, QFileDialog, QFormLayout
                                QGroupBox, QHBoxLayout, QLabel, QLineEdit, QPushButton,
                                QRadioButton, QSpinBox, QVBoxLayout, QWidget)
 
+from .. import services
 from ..errors import UserError
 from ..rig import Rig, rig_from_text
 from ..specimen import BUILTIN as SPECIMENS, Specimen, specimen_from_dict
@@ -284,18 +285,14 @@ class SetupView(QWidget):
         return self.rig_box.validate()
 
     def effects(self):
-        """mock_hw Effects from the effects field (UserError on a bad value)."""
+        """Simulated-rig effects from the effects field (UserError on a bad value)."""
         text = self.effects_edit.text().strip()
         if not text:
             return None
         if self.backend != "mock":
             raise UserError("effects can only be injected into the simulated rig; choose the mock backend",
                             key="effects")
-        from mock_hw.rig import Effects
-        try:
-            return Effects.parse(text)
-        except ValueError as e:
-            raise UserError(str(e), key="effects") from None
+        return services.parse_effects(text, key="effects")
 
     # -- backend check ----------------------------------------------------------
     def _backend_message(self, text: str, ok: bool) -> None:
@@ -309,16 +306,8 @@ class SetupView(QWidget):
         if rig is None or spec is None:
             self._backend_message("fix the specimen/rig files first", False)
             return
-        from ..acquisition import AcquisitionSession
-
         def work(progress, should_stop):
-            session = AcquisitionSession(rig, spec, None, backend="nidaqmx")
-            try:
-                for d in rig.devices:
-                    session.device(d.role)
-            finally:
-                session.close()
-            return [d.name for d in rig.devices]
+            return services.check_daq(rig, spec)
 
         def done(names):
             self._backend_message(f"NI-DAQmx: {', '.join(names)} configured", True)
@@ -343,23 +332,7 @@ class SetupView(QWidget):
         self._polling = True
 
         def work(progress, should_stop):
-            from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentError
-            out = {}
-            for key, port, cls in (("env", env, EnvironmentProbe), ("hammer", ham, HammerUnit)):
-                if not port:
-                    continue
-                try:
-                    with cls(port, timeout_s=0.3, tries=2, retry_delay_s=0.02) as inst:
-                        ident = inst.identify()
-                        if key == "env":
-                            out[key] = dict(ok=True, ident=f"{ident.model} {ident.serial} fw {ident.firmware}",
-                                            temperature_c=inst.temperature(), humidity_pct=inst.humidity())
-                        else:
-                            out[key] = dict(ok=True, ident=f"{ident.model} {ident.serial} fw {ident.firmware}",
-                                            ready=inst.ready(), count=inst.count(), level=inst.level())
-                except InstrumentError as e:
-                    out[key] = dict(ok=False, message=str(e))
-            return out
+            return services.read_instruments(env, ham)
 
         self.main.start_job("serial instruments", work, self._instruments_done, exclusive=False,
                             on_failed=self._instruments_failed)

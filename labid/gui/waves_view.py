@@ -2,8 +2,8 @@
 group velocity (with error bars) against the SAFE curve (nominal and identified).
 
 Arrivals and velocities are those of the analysis workflow (``labid.analysis``,
-stored under ``/results/analysis``); the scalogram is ``engine.waves.cwt`` with
-the analysis' wavelet, the curves ``engine.safe.group_velocity``.
+stored under ``/results/analysis``); the scalogram is ``services.scalogram``
+(the analysis' wavelet and band), the curves ``services.model_group_velocity``.
 """
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
+from .. import services
 from .common import Banner, empty_note, plot
 
 COLORS = {"A0": "#1f77b4", "S0": "#d62728", "SH0": "#2ca02c"}
@@ -56,9 +57,6 @@ class WavesView(QWidget):
 
     # -- data ---------------------------------------------------------------------------
     def reload(self) -> None:
-        if self.main.analysis_link() is None:
-            self.banner.warn("not available yet: the analysis workflow (labid.analysis) has not landed")
-            return
         res = self.main.read_results("analysis")
         self._res = res
         if not res:
@@ -81,14 +79,12 @@ class WavesView(QWidget):
         self.reload()
 
     def _load_records(self) -> None:
-        from ..runstore import RunStore
         self._records = []
         self.shot_combo.blockSignals(True)
         self.shot_combo.clear()
         if self.main.run_path:
             try:
-                with RunStore(self.main.run_path, "r") as st:
-                    recs = st.shots("wave")[:10]
+                recs = services.shots(self.main.run_path, "wave", limit=10)
             except Exception:  # noqa: BLE001 - no file / no shots: nothing to show
                 recs = []
             for r in recs:
@@ -109,7 +105,6 @@ class WavesView(QWidget):
 
     # -- drawing -------------------------------------------------------------------------------
     def _draw_scalogram(self) -> None:
-        from engine import waves
         i = self.shot_combo.currentIndex()
         if i < 0 or i >= len(self._records):
             self.image.clear()
@@ -118,25 +113,11 @@ class WavesView(QWidget):
         rec, name = self._records[i]
         fs = rec.timing.rate_hz
         arr = (self._res or {}).get("arrivals") or {}
-        wl = waves.PAPER_CFRP
-        wname = arr.get("wavelet")
-        if isinstance(wname, str) and wname.startswith("cmor"):
-            b, c = wname[4:].split("-")
-            wl = waves.Wavelet(float(b), float(c))
-        settings = (self._res or {}).get("settings") or {}
-        band = settings.get("wave_band_hz")
-        if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
-            fmin, fmax = float(band[0]), float(band[1])
-        else:
-            fmax = min(200e3, 0.4 * fs)
-            fmin = fmax / 20
-        freqs = np.linspace(fmin, fmax, 100)
-        x = rec.scaled(name)
-        W = np.abs(waves.cwt(x, fs, freqs, wl))
-        t = rec.time()
-        self.image.setImage(W.T, autoLevels=True)
+        sc = services.scalogram(rec, name, self._res, n_freqs=100)
+        t, fmin, fmax = sc.times_s, float(sc.frequencies_hz[0]), float(sc.frequencies_hz[-1])
+        self.image.setImage(sc.magnitude.T, autoLevels=True)
         self.image.setRect(pg.QtCore.QRectF(t[0], fmin, t[-1] - t[0], fmax - fmin))
-        self.info.setText(f"{wl.name} · {fs / 1e6:g} MHz · {len(t)} samples")
+        self.info.setText(f"{sc.wavelet} · {fs / 1e6:g} MHz · {len(t)} samples")
         self.ridge.setData([], [])
         if arr and "times_s" in arr and i == len(self._records[0][0].channels) - 1:
             self.ridge.setData(np.asarray(arr["times_s"], float), np.asarray(arr["frequencies_hz"], float))
@@ -172,8 +153,7 @@ class WavesView(QWidget):
         spec = self._specimen()
         if not curves or spec is None or self._safe_job is not None:
             return
-        ident = self.main.read_results("identification") or {}
-        params = {n: float(p["value"]) for n, p in (ident.get("parameters") or {}).items()}
+        params = services.parameters_of(self.main.read_results("identification"))
         lam = spec.laminate
         todo = []
         for key, c in curves.items():
@@ -183,13 +163,12 @@ class WavesView(QWidget):
             todo.append((mode, direction, grid))
 
         def work(progress, should_stop):
-            from engine import safe
             out = {}
             for mode, direction, grid in todo:
-                out[(mode, "nominal")] = (grid, np.asarray(safe.group_velocity(lam, grid, mode, direction)))
+                out[(mode, "nominal")] = (grid, services.model_group_velocity(lam, grid, mode, direction))
                 if params:
-                    lam2 = lam.with_params(params)
-                    out[(mode, "identified")] = (grid, np.asarray(safe.group_velocity(lam2, grid, mode, direction)))
+                    out[(mode, "identified")] = (grid, services.model_group_velocity(lam, grid, mode, direction,
+                                                                                     params))
             return out
 
         def done(out):

@@ -1,8 +1,9 @@
 """Long work off the GUI thread: a ``Job`` runs ``fn(progress, should_stop)`` in a thread.
 
 The function reports through ``progress(obj)`` and polls ``should_stop()`` to end
-early after ``cancel()``. Errors a user can cause (``UserError``,
-``AcquisitionError``, back-end ``ValueError`` subclasses) arrive as
+early after ``cancel()`` (raising ``labid.errors.Cancelled``). Errors a user can
+cause (``services.USER_ERRORS``: ``UserError``, ``AcquisitionError``, back-end
+``ValueError`` subclasses) arrive as
 ``failed(one line)``; anything else as ``failed('internal error: ...')`` with
 the traceback printed to stderr only.
 
@@ -16,26 +17,22 @@ import queue
 import sys
 import threading
 import traceback
+import warnings
 from typing import Any, Callable
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
-from drivers.protocol import AcquisitionError
-
-from ..errors import UserError
+from ..errors import Cancelled
+from ..services import USER_ERRORS
 
 POLL_MS = 15
-
-
-class Cancelled(Exception):
-    """Raised by job functions that stop early on request."""
 
 
 def one_line(exc: BaseException) -> str:
     """The message a user sees for an exception: one line, no traceback."""
     text = str(exc).strip().splitlines()
     msg = text[0] if text else type(exc).__name__
-    if isinstance(exc, (UserError, AcquisitionError, ValueError)):
+    if isinstance(exc, USER_ERRORS):
         return msg
     return f"internal error ({type(exc).__name__}: {msg})"
 
@@ -68,7 +65,7 @@ class Job(QObject):
         except Cancelled:
             put(("failed", "cancelled"))
         except BaseException as e:  # noqa: BLE001 - nothing may escape the thread
-            if not isinstance(e, (UserError, AcquisitionError, ValueError)):
+            if not isinstance(e, USER_ERRORS):
                 traceback.print_exc(file=sys.stderr)
             put(("failed", one_line(e)))
         else:
@@ -121,7 +118,6 @@ class Job(QObject):
         """Drop the function and the connections once finished (no cycles left)."""
         self._timer.stop()
         self.fn = None
-        import warnings
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)   # "failed to disconnect": none connected
             for sig in (self.progress, self.succeeded, self.failed, self.ended):

@@ -35,9 +35,10 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import time
+import tomllib
 from dataclasses import asdict
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
@@ -46,8 +47,9 @@ import numpy as np
 
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
-from .errors import UserError
-from .jsonio import to_jsonable
+from ..errors import UserError
+from ..jsonio import to_jsonable
+from .h5repair import is_consistency_flag_error, open_flagged, repair
 
 SCHEMA = 1
 KINDS = ("hammer", "wave")
@@ -58,110 +60,9 @@ _STR_LEN = 32
 def software_version() -> str:
     """The installed labid version ('0+unknown' when not installed)."""
     try:
-        from importlib.metadata import version
         return version("labid")
-    except Exception:  # pragma: no cover - not installed
+    except PackageNotFoundError:  # pragma: no cover - not installed
         return "0+unknown"
-
-
-def _is_consistency_flag_error(e: OSError) -> bool:
-    return "consistency flags" in str(e) or "h5clear" in str(e)
-
-
-def _copy_attrs(src, dst) -> None:
-    for k, v in src.attrs.items():
-        dst.attrs[k] = v
-
-
-_M32 = 0xFFFFFFFF
-
-
-def _rot(x, k):
-    return ((x << k) | (x >> (32 - k))) & _M32
-
-
-def _lookup3(data: bytes, initval: int = 0) -> int:
-    """Bob Jenkins' lookup3 hashlittle, byte-wise (HDF5 H5_checksum_lookup3)."""
-    n = len(data)
-    a = b = c = (0xDEADBEEF + n + initval) & _M32
-    i = 0
-    while n > 12:
-        k = data[i:i + 12]
-        a = (a + int.from_bytes(k[0:4], "little")) & _M32
-        b = (b + int.from_bytes(k[4:8], "little")) & _M32
-        c = (c + int.from_bytes(k[8:12], "little")) & _M32
-        a = (a - c) & _M32; a ^= _rot(c, 4); c = (c + b) & _M32
-        b = (b - a) & _M32; b ^= _rot(a, 6); a = (a + c) & _M32
-        c = (c - b) & _M32; c ^= _rot(b, 8); b = (b + a) & _M32
-        a = (a - c) & _M32; a ^= _rot(c, 16); c = (c + b) & _M32
-        b = (b - a) & _M32; b ^= _rot(a, 19); a = (a + c) & _M32
-        c = (c - b) & _M32; c ^= _rot(b, 4); b = (b + a) & _M32
-        n -= 12
-        i += 12
-    if n == 0:
-        return c
-    k = data[i:i + n] + bytes(12 - n)
-    a = (a + int.from_bytes(k[0:4], "little")) & _M32
-    b = (b + int.from_bytes(k[4:8], "little")) & _M32
-    c = (c + int.from_bytes(k[8:12], "little")) & _M32
-    c ^= b; c = (c - _rot(b, 14)) & _M32
-    a ^= c; a = (a - _rot(c, 11)) & _M32
-    b ^= a; b = (b - _rot(a, 25)) & _M32
-    c ^= b; c = (c - _rot(b, 16)) & _M32
-    a ^= c; a = (a - _rot(c, 4)) & _M32
-    b ^= a; b = (b - _rot(a, 14)) & _M32
-    c ^= b; c = (c - _rot(b, 24)) & _M32
-    return c
-
-
-def _cleared_copy(path: Path) -> Path:
-    """A copy of ``path`` with the superblock's "open for writing" flags cleared.
-
-    A writer killed outside SWMR mode (while it created tables or wrote results)
-    leaves these flags set; nothing but the flags is wrong once its last flush
-    completed. Superblock v2/v3: flags at byte 11, lookup3 checksum after
-    12 + 4 * sizeof(offsets) bytes.
-    """
-    tmp = path.with_name(path.name + ".unlocked")
-    shutil.copyfile(path, tmp)
-    with open(tmp, "r+b") as fh:
-        head = bytearray(fh.read(64))
-        if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] not in (2, 3):
-            tmp.unlink()
-            raise OSError(f"{path}: not an HDF5 file with a version 2/3 superblock")
-        n = 12 + 4 * head[9]
-        head[11] = 0
-        fh.seek(11)
-        fh.write(b"\x00")
-        fh.seek(n)
-        fh.write(_lookup3(bytes(head[:n])).to_bytes(4, "little"))
-    return tmp
-
-
-def _open_flagged(path: Path) -> tuple[h5py.File, Path | None]:
-    """Read-only view of a file left open by a killed writer: (file, temporary copy or None)."""
-    try:
-        return h5py.File(path, "r", swmr=True), None
-    except OSError:
-        tmp = _cleared_copy(path)
-        return h5py.File(tmp, "r"), tmp
-
-
-def _repair(path: Path) -> None:
-    """Rewrite a file left open by a killed writer into a clean copy."""
-    tmp = path.with_name(path.name + ".repair")
-    src, unlocked = _open_flagged(path)
-    try:
-        with h5py.File(tmp, "w", libver="latest") as dst:
-            _copy_attrs(src, dst)
-            for name in src:
-                src.copy(src[name], dst, name)
-            dst.flush()
-    finally:
-        src.close()
-        if unlocked:
-            unlocked.unlink()
-    os.replace(tmp, path)
 
 
 def _text(v: Any) -> str:
@@ -194,9 +95,9 @@ class RunStore:
             try:
                 self._f = h5py.File(self.path, "r")
             except OSError as e:
-                if not _is_consistency_flag_error(e):
+                if not is_consistency_flag_error(e):
                     raise UserError(f"not a readable HDF5 run file ({e})", file=str(self.path)) from None
-                self._f, self._unlocked = _open_flagged(self.path)
+                self._f, self._unlocked = open_flagged(self.path)
                 self._live = self._unlocked is None
             self._check_schema()
             return
@@ -232,9 +133,9 @@ class RunStore:
         try:
             return h5py.File(self.path, "a", libver="latest")
         except OSError as e:
-            if not _is_consistency_flag_error(e):
+            if not is_consistency_flag_error(e):
                 raise UserError(f"cannot open for appending ({e})", file=str(self.path)) from None
-        _repair(self.path)
+        repair(self.path)
         return h5py.File(self.path, "a", libver="latest")
 
     def _check_schema(self) -> None:
@@ -295,7 +196,6 @@ class RunStore:
         On a resumed file the texts must equal those already stored: one file
         holds one session on one rig and one specimen.
         """
-        import tomllib
         f = self._f
         cfg = f["config"]
         if "specimen_toml" in cfg:
@@ -515,6 +415,21 @@ class RunStore:
         if full not in self._f:
             raise KeyError(f"no results group {path!r} in {self.path}")
         return _read_tree(self._f[full])
+
+    def read_result(self, path: str) -> Any:
+        """The result under ``/results/<path>`` as ``write_result`` wrote it: its JSON copy
+        when it has one, else the nested dict of ``read_group``. KeyError if absent."""
+        return decode_result(self.read_group(path))
+
+
+def decode_result(g: Any) -> Any:
+    """A results group as written by ``write_result``: its JSON copy when it has one."""
+    if isinstance(g, dict) and isinstance(g.get("json"), str):
+        try:
+            return json.loads(g["json"])
+        except ValueError:
+            return g
+    return g
 
 
 def _json_default(o: Any) -> Any:

@@ -1,0 +1,492 @@
+"""The one place the lab panel, the command line and the report reach run files and workflows.
+
+Front-ends (``labid.gui``, ``labid.cmd_*``, ``labid.report``, ``labid.demo``)
+call these functions; they never open a ``RunStore`` or call ``engine``
+themselves (except ``labid dispersion`` and ``labid modes``, which touch no
+run file and must start fast). Each function opens the run file for as long
+as it needs it and closes it again, so a view never holds the file open.
+
+Run file: ``open_run`` (-> ``RunData``: configuration, shot counts, up to
+``max_shots`` shots, every results group decoded), ``shots``,
+``read_result``/``store_result``, ``save_session``/``session_state``,
+``stored_features``, ``discard_empty_run``.
+Workflows: ``acquire`` (+ ``parse_effects``, ``check_daq``,
+``read_instruments``), ``run_analysis``, ``save_picks`` (+ ``stored_peaks``,
+``spectra_of_run``, ``toggle_peak``), ``run_identification``,
+``run_diagnosis``, ``store_for_features`` (a CLI result into the run its
+features came from).
+Display (``labid.display``, re-exported): ``spectrum_indicator``,
+``average_spectrum``, ``scalogram``, ``model_group_velocity``,
+``model_frequencies``, ``parameters_of``.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from drivers.protocol import AcquisitionError, Record
+from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentError
+from engine import modal
+from mock_hw.rig import Effects
+
+from . import diagnosis as diag
+from . import identification as ident
+from .acquisition import AcquisitionSession, LiveSession
+from .analysis import Analysis, AnalysisSettings, analyze_store, modal_features, modal_table, store_analysis
+from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
+                      scalogram)
+from .errors import Cancelled, UserError
+from .features import features_text
+from .rig import Rig
+from .specimen import Specimen, load_specimen, specimen_from_dict
+from .store import KINDS, RunStore, decode_result
+
+__all__ = [
+    # the run file
+    "RunData", "open_run", "shots", "read_result", "store_result", "save_session", "session_state",
+    "lookup", "features_of", "stored_features", "discard_empty_run",
+    "FEATURES_GROUPS", "IDENT_GROUPS", "GAP_GROUPS", "SESSION_GROUP", "USER_ERRORS",
+    # acquisition
+    "parse_effects", "acquire", "check_daq", "read_instruments",
+    # analysis and picks
+    "features_path", "run_analysis", "run_reference", "stored_peaks", "save_picks", "spectra_of_run",
+    "spectrum_indicator", "toggle_peak",
+    # identification and diagnosis
+    "select_data", "load_features_file", "specimen_for_features", "parse_start", "cancellable",
+    "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
+    # display (labid.display)
+    "Scalogram", "average_spectrum", "scalogram", "model_group_velocity", "model_frequencies", "parameters_of",
+]
+
+#: where the workflows' results sit under /results (first match wins)
+FEATURES_GROUPS = ("features", "analysis/features", "analysis")
+IDENT_GROUPS = ("identification", "identify")
+GAP_GROUPS = ("diagnosis", "gap", "diagnose")
+#: exceptions whose message is for the user (one line, no traceback)
+USER_ERRORS: tuple[type[BaseException], ...] = (UserError, AcquisitionError, ValueError)
+#: the results group the panel keeps its session state in
+SESSION_GROUP = "gui"
+
+Progress = Callable[[Any], None]
+ShouldStop = Callable[[], bool]
+
+
+# ============================================================== the run file
+@dataclass
+class RunData:
+    """What a front-end reads from a run file (``open_run``)."""
+
+    path: str
+    specimen_toml: str = ""
+    rig_toml: str = ""
+    attrs: dict = field(default_factory=dict)
+    counts: dict = field(default_factory=dict)
+    hammer: list = field(default_factory=list)
+    wave: list = field(default_factory=list)
+    results: dict = field(default_factory=dict)
+
+
+def open_run(path: str | Path, max_shots: int = 0) -> RunData:
+    """Read configuration, shot counts, at most ``max_shots`` shots per kind and every
+    results group (JSON copies preferred). UserError for a file that is not a run."""
+    with RunStore(path, "r") as st:
+        rd = RunData(str(path), st.specimen_toml(), st.rig_toml())
+        rd.attrs = st.attributes()
+        rd.counts = {k: st.n_shots(k) for k in KINDS}
+        if rd.counts["hammer"] and max_shots:
+            rd.hammer = st.shots("hammer", limit=max_shots)
+        if rd.counts["wave"] and max_shots:
+            rd.wave = st.shots("wave", limit=max_shots)
+        for name in st.result_names():
+            try:
+                rd.results[name] = decode_result(st.read_group(name))
+            except (KeyError, ValueError, OSError):
+                continue
+    return rd
+
+
+def shots(run: str | Path, kind: str, limit: int | None = None) -> list[Record]:
+    """The committed shots of ``kind`` in ``run`` (at most ``limit``), as Records."""
+    with RunStore(run, "r") as st:
+        return st.shots(kind, limit=limit)
+
+
+def read_result(run: str | Path, name: str) -> Any:
+    """The result ``/results/<name>`` of ``run`` (its JSON copy preferred), None if absent."""
+    with RunStore(run, "r") as st:
+        try:
+            return st.read_result(name)
+        except KeyError:
+            return None
+
+
+def store_result(run: str | Path, name: str, data: Mapping) -> None:
+    """Write ``data`` under ``/results/<name>`` of ``run`` (structured + a JSON copy)."""
+    with RunStore(run, "a") as st:
+        st.write_result(name, dict(data))
+
+
+def save_session(run: str | Path, state: Mapping) -> None:
+    """Store the panel's session state (views, settings) in ``run``."""
+    with RunStore(run, "a") as st:
+        st.write_group(SESSION_GROUP, {"state_json": json.dumps(state)})
+
+
+def session_state(rd: RunData) -> dict:
+    """The panel's session state stored in a run ({} if none or unreadable)."""
+    gui = rd.results.get(SESSION_GROUP)
+    text = gui.get("state_json") if isinstance(gui, dict) else None
+    if not text:
+        return {}
+    try:
+        st = json.loads(text)
+    except (TypeError, ValueError):
+        return {}
+    return st if isinstance(st, dict) else {}
+
+
+def lookup(results: dict, paths: tuple[str, ...]) -> Any:
+    """The first of ``paths`` ('a/b') present in the nested results dict, else None."""
+    for p in paths:
+        node: Any = results
+        for part in p.split("/"):
+            if isinstance(node, dict) and part in node:
+                node = node[part]
+            else:
+                node = None
+                break
+        if node is not None:
+            return node
+    return None
+
+
+def features_of(rd: RunData) -> dict:
+    """The measured features (CONTRACT section 2) stored in the run, or {}."""
+    f = lookup(rd.results, FEATURES_GROUPS)
+    if isinstance(f, dict) and isinstance(f.get("features"), dict):
+        f = f["features"]
+    if isinstance(f, dict) and isinstance(f.get("json"), str):
+        try:
+            return json.loads(f["json"])
+        except ValueError:
+            return {}
+    return f if isinstance(f, dict) and ("modal" in f or "waves" in f) else {}
+
+
+def stored_features(run: str | Path) -> dict:
+    """The features the analysis stored in ``run`` ({} if none)."""
+    return features_of(open_run(run, max_shots=0))
+
+
+def discard_empty_run(path: str | Path) -> bool:
+    """Delete ``path`` if it is a run file without any shot (created by a session that
+    recorded nothing); True if deleted. Unreadable files are left alone."""
+    path = Path(path)
+    if not path.exists():
+        return False
+    try:
+        with RunStore(path, "r") as s:
+            empty = s.n_shots() == 0
+    except Exception:  # noqa: BLE001 - not ours to judge: keep it
+        return False
+    if empty:
+        path.unlink()
+    return empty
+
+
+# ============================================================== acquisition
+def parse_effects(text: str, key: str = "--effects") -> Effects | None:
+    """Unmodelled effects for the simulated rig from 'name=value,..' (SI units; None if
+    empty); UserError naming ``key`` on a bad name or value."""
+    text = (text or "").strip()
+    if not text:
+        return None
+    try:
+        return Effects.parse(text)
+    except ValueError as e:
+        raise UserError(str(e), key=key) from None
+
+
+def acquire(run: str | Path, rig: Rig | str | None, specimen: Specimen | str, *, backend: str = "mock",
+            effects: Effects | None = None, seed: int = 0, hits: int | None = None,
+            waves: int | None = None, total: bool = False, progress: Progress | None = None,
+            should_stop: ShouldStop | None = None,
+            on_record: Callable[[str, Record], None] | None = None) -> dict:
+    """Record ``hits`` hammer hits and ``waves`` wave shots into ``run`` (created or
+    appended to; each shot flushed at once). ``on_record(kind, record)`` sees every
+    device read (accepted or not). Returns the session summary."""
+    with RunStore(run, "a") as store:
+        if on_record is None:
+            session = AcquisitionSession(rig, specimen, store, backend=backend, effects=effects, seed=seed)
+        else:
+            session = LiveSession(rig, specimen, store, backend=backend, effects=effects, seed=seed,
+                                  on_record=on_record)
+        return session.run(hits, waves, progress=progress, should_stop=should_stop, total=total)
+
+
+def check_daq(rig: Rig, specimen: Specimen) -> list[str]:
+    """Configure every device of ``rig`` on NI-DAQmx as an acquisition would; returns
+    their names (UserError naming the device and the cause otherwise)."""
+    session = AcquisitionSession(rig, specimen, None, backend="nidaqmx")
+    try:
+        for d in rig.devices:
+            session.device(d.role)
+    finally:
+        session.close()
+    return [d.name for d in rig.devices]
+
+
+def read_instruments(env_port: str, hammer_port: str) -> dict:
+    """Query the environment probe and the hammer unit on their serial ports.
+
+    Returns ``{"env": {...}, "hammer": {...}}`` for the ports given, each
+    ``ok`` with its readings or not ``ok`` with a one-line ``message``."""
+    out = {}
+    for key, port, cls in (("env", env_port, EnvironmentProbe), ("hammer", hammer_port, HammerUnit)):
+        if not port:
+            continue
+        try:
+            with cls(port, timeout_s=0.3, tries=2, retry_delay_s=0.02) as inst:
+                who = inst.identify()
+                if key == "env":
+                    out[key] = dict(ok=True, ident=f"{who.model} {who.serial} fw {who.firmware}",
+                                    temperature_c=inst.temperature(), humidity_pct=inst.humidity())
+                else:
+                    out[key] = dict(ok=True, ident=f"{who.model} {who.serial} fw {who.firmware}",
+                                    ready=inst.ready(), count=inst.count(), level=inst.level())
+        except InstrumentError as e:
+            out[key] = dict(ok=False, message=str(e))
+    return out
+
+
+# ============================================================== analysis
+def features_path(run: str | Path) -> Path:
+    """Where the features of ``run`` are written by default: ``RUN.features.json`` beside it."""
+    r = Path(run)
+    return r.with_name(r.stem + ".features.json")
+
+
+def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
+                 out: str | Path | None = None, temperature_c: float | None = None) -> Analysis:
+    """Analyse the shots of ``run`` (as ``labid analyze``): write the features file
+    ``out`` (default ``features_path(run)``) and ``/results/analysis``.
+
+    ``temperature_c`` (the environment probe) goes into ``rig.temperature_c`` unless
+    the rig section has one. ``analysis.run`` of the features is the run file's path
+    relative to the features file, so that results computed from the features can be
+    stored back into their run (``store_for_features``)."""
+    settings = settings or AnalysisSettings()
+    out = Path(out) if out is not None else features_path(run)
+    with RunStore(run, "r") as st:
+        an = analyze_store(st, settings)
+    if temperature_c is not None and math.isfinite(temperature_c):
+        an.features.setdefault("rig", {}).setdefault("temperature_c", float(temperature_c))
+    an.features.setdefault("analysis", {})["run"] = run_reference(run, out)
+    store_analysis(run, an, out, settings)
+    return an
+
+
+def run_reference(run: str | Path, features_file: str | Path) -> str:
+    """The run file as the features file refers to it: relative to its directory."""
+    return os.path.relpath(Path(run).resolve(), Path(features_file).resolve().parent)
+
+
+def stored_peaks(res: Mapping | None) -> tuple[modal.Peak, ...]:
+    """The peaks of a stored ``/results/analysis`` group (``read_result(run, 'analysis')``)."""
+    pk = (res or {}).get("peaks")
+    if not isinstance(pk, dict) or "frequency_hz" not in pk:
+        return ()
+    n = len(np.atleast_1d(pk["frequency_hz"]))
+    col = {k: np.atleast_1d(np.asarray(pk[k], float)) for k in pk}
+    return tuple(modal.Peak(float(col["frequency_hz"][i]), float(col["damping_ratio"][i]),
+                            float(col["sigma_hz"][i]), float(col["snr_db"][i]), float(col["confidence"][i]),
+                            (), bool(col["manual"][i]))
+                 for i in range(n))
+
+
+def save_picks(run: str | Path, peaks: Sequence[modal.Peak]) -> dict:
+    """Replace the run's modal features (features file and stored peaks) by ``peaks``;
+    returns the features. ValueError if the run has not been analysed."""
+    with RunStore(run, "r") as st:
+        try:
+            res = st.read_group("analysis")
+        except KeyError:
+            raise ValueError("the run has not been analysed yet") from None
+    doc = json.loads(res["features"]["json"])
+    ms = (doc.get("modal") or {}).get("mode_shapes")
+    modal_sec = modal_table(peaks, ms["points"] if ms else None)
+    if modal_sec is None:
+        doc.pop("modal", None)
+    else:
+        doc["modal"] = modal_sec
+    notes = doc.setdefault("analysis", {}).setdefault("notes", [])
+    notes.append(f"modal picks edited by hand in the panel ({len(peaks)} peaks)")
+    out = features_path(run)
+    text = features_text(doc, str(out))
+    out.write_text(text)
+    res["features"] = {"json": text}
+    if peaks:
+        res["peaks"] = {k: np.array([getattr(p, k) for p in peaks], float)
+                        for k in ("frequency_hz", "damping_ratio", "sigma_hz", "snr_db", "confidence", "manual")}
+    else:
+        res.pop("peaks", None)
+    with RunStore(run, "a") as st:
+        st.write_group("analysis", res)
+    return doc
+
+
+def spectra_of_run(run: str | Path) -> modal.Spectra | None:
+    """Spectra of the run's hammer shots, as the analysis computes them (for editing picks)."""
+    recs = shots(run, "hammer")
+    _, spec, _ = modal_features(recs, AnalysisSettings())
+    return spec
+
+
+def spectrum_indicator(spec: modal.Spectra) -> np.ndarray:
+    """The summed normalised spectrum the picks are made on (``engine.modal.indicator``)."""
+    return modal.indicator(spec)
+
+
+def toggle_peak(peaks: Sequence[modal.Peak], spec: modal.Spectra, f_hz: float,
+                tol_hz: float | None = None) -> tuple[tuple[modal.Peak, ...], str]:
+    """Remove the pick within ``tol_hz`` (default 2 bins) of ``f_hz``, else fit one there.
+    Returns (new peaks, 'removed' or 'added'); ValueError if no peak can be fitted."""
+    tol = 2 * spec.df if tol_hz is None else tol_hz
+    if any(abs(p.frequency_hz - f_hz) <= tol for p in peaks):
+        return modal.remove_peak(peaks, f_hz, tol), "removed"
+    return modal.add_peak(peaks, spec, f_hz), "added"
+
+
+# ============================================================== identification and diagnosis
+def select_data(doc: Mapping, data: str) -> dict:
+    """The features document restricted to 'modal', 'waves' or 'combined' data."""
+    out = dict(doc)
+    if data == "modal":
+        out.pop("waves", None)
+    elif data == "waves":
+        out.pop("modal", None)
+    return out
+
+
+def load_features_file(path: str | Path) -> dict:
+    """A features file, validated, its specimen path made usable from anywhere."""
+    doc = ident.load_features(path)
+    spec = doc.get("specimen")
+    if isinstance(spec, str) and spec not in ("cfrp", "aluminium"):
+        p = Path(spec)
+        doc["specimen"] = str(p if p.is_absolute() else Path(path).parent / p)
+    return doc
+
+
+def specimen_for_features(doc: Mapping) -> Specimen | None:
+    """The specimen a features document refers to (inline, path or built-in); None if it names none."""
+    s = doc.get("specimen")
+    if isinstance(s, dict):
+        return specimen_from_dict(s, "features#specimen")
+    if isinstance(s, str) and s:
+        return load_specimen(s)
+    return None
+
+
+def parse_start(text: str | None, option: str = "start") -> dict[str, float]:
+    """Initial values 'P=V,..' (SI) as a dict; UserError naming ``option`` on a bad value."""
+    return ident.parse_assignments(text, option)
+
+
+def cancellable(blocks, should_stop: ShouldStop, progress: Progress):
+    """Data blocks whose model evaluations report ``("eval", n)`` and raise ``Cancelled``
+    once ``should_stop()``."""
+    count = {"n": 0}
+
+    def wrap(fn):
+        if fn is None:
+            return None
+
+        def inner(*a, **kw):
+            if should_stop():
+                raise Cancelled()
+            count["n"] += 1
+            progress(("eval", count["n"]))
+            return fn(*a, **kw)
+        return inner
+
+    return [replace(b, predict=wrap(b.predict), jacobian=wrap(b.jacobian)) for b in blocks]
+
+
+def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_dir: str | Path = ".",
+                       src: str = "<features>", names: Sequence[str] | None = None,
+                       start: Mapping[str, float] | None = None, method: str = "lm", n_starts: int = 0,
+                       data: str | None = None, progress: Progress | None = None,
+                       should_stop: ShouldStop | None = None) -> dict:
+    """Identify the constants from a features document (``labid.identification.run``).
+
+    With ``should_stop``/``progress`` (the panel) every model evaluation reports
+    ``("eval", n)`` and a stop request raises ``Cancelled``; ``n_starts`` random
+    starts (within +-50 %, one process) report ``("start", i, n)``. Returns the
+    estimate's dict, plus ``data``, ``specimen``, ``nominal`` and ``multi_start``
+    for the panel (``data`` given)."""
+    problem = ident.problem_from_features(doc, base_dir=base_dir, src=src, specimen=specimen)
+    if should_stop is not None or progress is not None:
+        problem.blocks = cancellable(problem.blocks, should_stop or (lambda: False),
+                                     progress or (lambda obj: None))
+    est = ident.run(problem, names, start or None, method=method)
+    out = est.to_dict()
+    if data is None:
+        return out
+    out["data"] = data
+    out["specimen"] = problem.specimen.name
+    if n_starts:
+        stop = should_stop or (lambda: False)
+        st0 = {n: (start or {}).get(n, problem.nominal[n]) for n in est.names}
+        starts = ident.random_starts(st0, est.names, n_starts, seed=0)
+        runs = []
+        for i, st in enumerate(starts):
+            if stop():
+                raise Cancelled()
+            runs += ident.multi_start(doc, [st], est.names, specimen=specimen, method=method, max_workers=1)
+            if progress:
+                progress(("start", i + 1, n_starts))
+        out["multi_start"] = runs
+    out["nominal"] = {n: float(problem.nominal[n]) for n in est.names}
+    return out
+
+
+def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>", options=None) -> dict:
+    """The sim-to-real gap diagnosis of a features document (``labid.diagnosis``)."""
+    return diag.run_diagnosis(doc, base_dir, src, options)
+
+
+def run_of_features(features_file: str | Path) -> Path | None:
+    """The run file a features file was computed from (its ``analysis.run``, relative
+    to the features file), if that file exists; else None."""
+    p = Path(features_file)
+    try:
+        doc = json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None
+    ref = (doc.get("analysis") or {}).get("run") if isinstance(doc, dict) else None
+    if not isinstance(ref, str) or not ref:
+        return None
+    run = (Path(ref) if Path(ref).is_absolute() else p.parent / ref).resolve()
+    return run if run.is_file() else None
+
+
+def store_for_features(features_file: str | Path, name: str, result: Mapping) -> str | None:
+    """Store a result computed from a features file (``labid identify``, ``labid diagnose``)
+    under ``/results/<name>`` of the run the features came from, where the panel and the
+    report find it. Returns a one-line note for the user (stored, or why not: the result
+    itself is never lost to it), None when the features came from no run."""
+    run = run_of_features(features_file)
+    if run is None:
+        return None
+    try:
+        store_result(run, name, result)
+    except (UserError, OSError) as e:
+        return f"warning: result not stored in the run file: {e}"
+    return f"result stored in {run} (/results/{name})"

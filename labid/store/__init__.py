@@ -1,0 +1,10 @@
+"""The HDF5 run store: one file per test session (schema in ``runstore``).
+
+Public seam: ``RunStore`` (open, append shots, read shots, write/read results),
+``decode_result`` (a results group -> its JSON copy), ``SCHEMA``, ``KINDS``,
+``software_version``. ``h5repair`` mends files left open by a killed writer
+(used by ``RunStore`` itself).
+"""
+from .runstore import KINDS, SCHEMA, RunStore, decode_result, software_version
+
+__all__ = ["KINDS", "SCHEMA", "RunStore", "decode_result", "software_version"]
