@@ -51,7 +51,7 @@ def _pair(text: str, key: str, lo: int, hi: int) -> tuple[int, int]:
 
 def run(args) -> dict:
     from engine.laminate import PhysicsError
-    from engine.plate_fe import FEError, PlateModel
+    from engine.plate import FEError, PlateModel
 
     from .specimen import load_specimen
 

@@ -146,7 +146,7 @@ def effective_laminate(lam: Laminate, effects: Effects) -> Laminate:
 def plate_modes(lam: Laminate, length: float, width: float, n_modes: int,
                 masses: tuple = (), springs: tuple = (), mesh=None):
     """(PlateModel, Modes) for the plate with point masses/springs; cached."""
-    from engine.plate_fe import PlateModel
+    from engine.plate import PlateModel
     model = PlateModel.build(lam, length, width, mesh)
     if masses:
         model = model.with_point_masses(masses)

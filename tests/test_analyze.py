@@ -35,7 +35,7 @@ def analysed(run_file: Path):
 
 @pytest.mark.slow
 def test_modal_features_match_the_plate_model(analysed):
-    from engine.plate_fe import PlateModel
+    from engine.plate import PlateModel
     from labid.specimen import load_specimen
     _, feats, result = analysed
     assert result == feats  # --json is the features document

@@ -197,7 +197,7 @@ def _cfrp_hammer_test():
     The responses are built here in the frequency domain from the continuous
     acceleration FRF of each mode (independent of the sampled-pole model the
     estimator uses). Returns (fn, zeta, snr_db per mode, hits, forces, pre)."""
-    from engine.plate_fe import PlateModel
+    from engine.plate import PlateModel
     from labid.specimen import load_specimen
     sp = load_specimen("cfrp")
     model = PlateModel.build(sp.laminate, sp.length, sp.width)
