@@ -202,11 +202,8 @@ def fig_scalogram(rd: RunData, feats: dict) -> str | None:
     x = rec.scaled(name)
     fs = rec.timing.rate_hz
     ridge = lookup(rd.results, ("analysis/arrivals", "analysis/waves/arrivals"))
-    wl = W.Wavelet(2.0, 5.0)
     wname = ridge.get("wavelet") if isinstance(ridge, dict) else None
-    if isinstance(wname, str) and wname.startswith("cmor") and "-" in wname:
-        b, c = wname[4:].split("-", 1)
-        wl = W.Wavelet(float(b), float(c))
+    wl = W.Wavelet.from_name(wname, default=W.Wavelet(2.0, 5.0))
     band = lookup(rd.results, ("analysis/settings/wave_band_hz",))
     if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
         fmin, fmax = float(band[0]), float(band[1])

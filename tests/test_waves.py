@@ -238,6 +238,22 @@ def test_bad_input():
         waves.velocity_gate(0.3, 2000, 1000)
 
 
+@pytest.mark.parametrize("name", ["cmor2-1", "cmor2-5", "cmor0.5-1", "cmor1.5-0.6667", "cmor2-2.5"])
+def test_wavelet_from_name_reads_pywavelets_names(name):
+    """B and C as PyWavelets itself reads them from the name, and the name round-trips."""
+    wl = waves.Wavelet.from_name(name)
+    ref = pywt.ContinuousWavelet(name)
+    assert (wl.bandwidth, wl.center) == pytest.approx((ref.bandwidth_frequency, ref.center_frequency), rel=1e-7)
+    assert wl.name == name
+
+
+def test_wavelet_from_name_rejects_other_names():
+    for bad in ("morl", "cmor2", "cmor-1", "cmor2-1-3", "cmor0-1", "", None, 2.0):
+        with pytest.raises(waves.WaveError):
+            waves.Wavelet.from_name(bad)
+        assert waves.Wavelet.from_name(bad, default=waves.PAPER_CFRP) == waves.PAPER_CFRP
+
+
 # --------------------------------------------------------------------------- SAFE-synthesised records
 def _safe_case(name, distance, force, fs, n, wl, fmax, noise_rel=1e-3, seed=0):
     from engine import safe

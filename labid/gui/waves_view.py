@@ -118,11 +118,7 @@ class WavesView(QWidget):
         rec, name = self._records[i]
         fs = rec.timing.rate_hz
         arr = (self._res or {}).get("arrivals") or {}
-        wl = waves.PAPER_CFRP
-        wname = arr.get("wavelet")
-        if isinstance(wname, str) and wname.startswith("cmor"):
-            b, c = wname[4:].split("-")
-            wl = waves.Wavelet(float(b), float(c))
+        wl = waves.Wavelet.from_name(arr.get("wavelet"), default=waves.PAPER_CFRP)
         settings = (self._res or {}).get("settings") or {}
         band = settings.get("wave_band_hz")
         if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
