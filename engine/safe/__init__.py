@@ -10,7 +10,7 @@ Modules (each readable alone):
   Chebyshev series in k; roots at given frequencies (the measured reason for this
   hand-written series is in its docstring);
 * :mod:`.labels` -- names of the branches (A0, S0, SH0, A1, ...);
-* :mod:`.dispersion` -- dispersion curves and group velocities (the public entry);
+* :mod:`.curves` -- dispersion curves and group velocities (the public entry);
 * :mod:`.forces` -- force histories (hammer, pencil-lead break, tone burst);
 * :mod:`.transient` -- forced transient response at a sensor (paper Eqs. 23-26).
 
@@ -25,7 +25,7 @@ its tests and benchmarks; not for other layers): ``model.DofClass``,
 ``model.class_bases``, ``model.coupling``, ``model.TWO_PI``, everything in
 ``branches`` and ``labels``.
 """
-from .dispersion import Dispersion, ModeCurve, dispersion, dispersion_from_model, group_velocity
+from .curves import Dispersion, ModeCurve, dispersion, dispersion_from_model, group_velocity
 from .forces import ForceHistory, hammer_force, pencil_lead_break, tone_burst
 from .model import SafeError, SafeModel, bond_matrix, default_discretisation, ply_stiffness, safe_model
 from .transient import QUANTITIES, mode_transfer, transient_response

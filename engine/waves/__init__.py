@@ -8,7 +8,7 @@ Modules (each readable alone):
 
 * :mod:`.wavelet` -- the complex Morlet ``Wavelet`` (B, C; ``from_name('cmor2-1')``,
   ``.name``, time and frequency std) and the paper's two choices;
-* :mod:`.cwt` -- the transform as an analytic Morlet filter bank in the Fourier
+* :mod:`.bank` -- the transform as an analytic Morlet filter bank in the Fourier
   domain (the measured reason for keeping it is in its docstring), its decimated
   form and the white-noise level of |W|;
 * :mod:`.arrivals` -- arrival time per frequency from |W|, the dispersion-bias
@@ -24,7 +24,7 @@ Public API (re-exported here): ``WaveError``, ``Wavelet``, ``PAPER_ALUMINIUM``,
 ``GroupVelocity``, ``group_velocity``, ``independent_points``.
 """
 from .arrivals import Arrivals, arrival_times, correct_dispersion_bias, expected_gate, velocity_gate
-from .cwt import cwt, cwt_decimated, white_noise_level
+from .bank import cwt, cwt_decimated, white_noise_level
 from .velocity import GroupVelocity, group_velocity, independent_points
 from .wavelet import PAPER_ALUMINIUM, PAPER_CFRP, Wavelet, WaveError
 
