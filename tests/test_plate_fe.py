@@ -9,6 +9,7 @@ import scipy.sparse as sp
 from engine.laminate import Laminate, Material, Ply, abdh
 from engine.plate import FEError, Mesh, PlateModel, coefficients_from_abdh, natural_frequencies
 from engine.plate.element import combo_scales, reference_matrices
+from labid.specimen import load_specimen
 
 T300 = Material(E1=136.7e9, E2=9.0e9, nu12=0.30, G12=5.0e9, G13=5.08e9, G23=3.16e9,
                 density=1560.0, name="T300")
@@ -322,7 +323,6 @@ def test_membrane_solve_reuse_matches_dense_spectrum():
 def test_stiffness_loss_over_the_whole_plate_scales_frequencies_by_sqrt():
     """A loss L over every element scales K by (1 - L): every frequency by sqrt(1 - L);
     a local loss lowers frequencies, never raises them (Rayleigh quotient)."""
-    from labid.specimen import load_specimen
     spec = load_specimen("cfrp")
     model = PlateModel.build(spec.laminate, spec.length, spec.width)
     f0 = model.solve(6).frequencies_hz
