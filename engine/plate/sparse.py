@@ -8,11 +8,11 @@ ARPACK time went to M products on the full K pattern), and the DOF blocks of a
 symmetric layup (bending / membrane) have their positions precomputed (``Block``).
 
 Why hand-made (measured, kept on purpose): on the default CFRP mesh (3125 DOF)
-K and M from new constants cost ~2.5x less CPU than scipy's textbook COO
-assembly (``coo_matrix((data, (rows, cols))).tocsr()``), more with the block
-slicing a symmetric layup needs, i.e. ~18 % of every solve saved
-(bench/bench_plate_pattern.py, bench/RESULTS.md); the matrices are the same to
-1e-14 (``tests/test_plate_fe.py::test_fixed_pattern_equals_scipy_coo_assembly``).
+K and M from new constants cost 4.4 ms CPU against 10.7 ms for scipy's textbook
+COO assembly (``coo_matrix((data, (rows, cols))).tocsr()``) and 12.8 ms with the
+bending-block slicing a symmetric layup needs: 17-23 % of the CPU time of every
+solve (bench/bench_plate_pattern.py, bench/RESULTS.md); the matrices are the same
+to 1e-14 (``tests/test_plate_fe.py::test_fixed_pattern_equals_scipy_coo_assembly``).
 
 Eigen solver: shift-invert Lanczos (ARPACK eigsh) with a small negative shift,
 SuperLU factorisation of K - sigma M, on one DOF block (all fields, or the
