@@ -27,7 +27,7 @@ non-Hermitian eigensolver (not implemented).
 Why a hand-written branch series (measured, kept on purpose)
 ------------------------------------------------------------
 A plain solve (the 2N complex companion linearisation in k, ``scipy.linalg.eig``
-at every frequency) of the 12-ply CFRP to 200 kHz costs ~8400x the series
+at every frequency) of the 12-ply CFRP to 200 kHz costs 6000-8400x the series
 (bench/bench_safe.py, bench/RESULTS.md "engine.safe", section 1) and agrees with
 it to 7.5e-7 in k and 2.4e-6 in c_g (round-off at 1 kHz; < 1e-9 above 60 kHz).
 ``tests/test_safe.py::test_reduced_solver_matches_full_newton`` and
