@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 
-from engine.plate_fe import PlateModel  # noqa: E402
+from engine.plate import PlateModel  # noqa: E402
 from labid.identification import (multi_start, plot_multi_start, problem_from_features,  # noqa: E402
                                   random_starts, run, synthetic_features)
 from labid.specimen import load_specimen  # noqa: E402

@@ -1,4 +1,4 @@
-"""Benchmark of engine.plate_fe on the 0.33 m square 12-ply CFRP plate.
+"""Benchmark of engine.plate on the 0.33 m square 12-ply CFRP plate.
 
 Run: ``OMP_NUM_THREADS=1 .venv/bin/python bench/bench_plate_fe.py [--no-study]``.
 Prints a markdown section for bench/RESULTS.md:
@@ -23,7 +23,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench._machine import machine  # noqa: E402
 
-from engine.plate_fe import DEFAULT_ELEMENTS, EDGE_LAYER, Mesh, PlateModel  # noqa: E402
+from engine.laminate import Laminate, Material, Ply  # noqa: E402
+from engine.plate import DEFAULT_ELEMENTS, EDGE_LAYER, Mesh, PlateModel  # noqa: E402
 from labid.specimen import load_specimen  # noqa: E402
 
 NAMES = ["E1", "E2", "nu12", "G12", "G13", "G23", "density"]
@@ -67,7 +68,6 @@ def study(spec) -> list[str]:
 
 def validation() -> list[str]:
     """FV12 and Leissa errors at the default mesh (ORACLES.md)."""
-    from engine.laminate import Laminate, Material, Ply
     steel = Material.isotropic_from(200e9, 8000.0, nu=0.3, name="steel")
     fv12 = np.array([1.622, 2.360, 2.922, 4.190, 4.190, 7.356, 7.356, 7.668])
     leissa = np.array([13.47, 19.60, 24.27, 34.80, 34.80, 61.09, 61.09, 63.69])

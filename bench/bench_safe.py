@@ -1,4 +1,4 @@
-"""Benchmark of engine.safe (dispersion) and engine.safe_transient (transient response).
+"""Benchmark of engine.safe (dispersion) and engine.safe.transient (transient response).
 
 Run:  OMP_NUM_THREADS=1 .venv/bin/python bench/bench_safe.py [--profile] [--quick]
 
@@ -26,6 +26,7 @@ from bench._machine import machine  # noqa: E402
 
 from engine import safe  # noqa: E402
 from engine.safe import dispersion, pencil_lead_break, safe_model, transient_response  # noqa: E402
+from engine.safe.labels import branch_table  # noqa: E402
 from labid.specimen import load_specimen  # noqa: E402
 
 
@@ -139,7 +140,7 @@ def main():
         y, tmin, tmed = timeit(lambda: transient_response(lam, 0.3, F, 5e6, 10000, fmax_hz=fm, **kw),
                                2 if quick else 5)
         fmx = 2.5e6 if fm is None else fm
-        nm = len(safe._branch_table(safe_model(lam, fmax_hz=fmx), 2 * np.pi * fmx))
+        nm = len(branch_table(safe_model(lam, fmax_hz=fmx), 2 * np.pi * fmx))
         lines.append(f"| 0-{fmx / 1e6:g} MHz{' (default)' if fm is None else ''} | {nm} | "
                      f"{tmin * 1e3:.0f} / {tmed * 1e3:.0f} | {CPU['last'] * 1e3:.0f} |")
     lines.append("")

@@ -16,6 +16,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pywt
+import scipy
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from engine import waves  # noqa: E402
@@ -58,8 +60,6 @@ def main() -> None:
         pipeline()
         b, m = best_of(pipeline)
         rows.append((wl.name, f"{freqs[0] / 1e3:g}-{fmax / 1e3:g} kHz", "fft + arrivals", b * 1e3, m * 1e3))
-    import scipy
-    import pywt
     print("Machine:", platform.processor() or platform.machine(), f"{os.cpu_count()} cores;",
           f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__},"
           f" PyWavelets {pywt.__version__}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")

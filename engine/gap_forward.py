@@ -218,7 +218,7 @@ class ForwardModel:
 
     def __init__(self, problem: GapProblem, mesh=None, safe_order: int | None = None,
                  plate_model=None):
-        from .plate_fe import PlateModel
+        from .plate import PlateModel
         self.problem, self.safe_order = problem, safe_order
         if problem.modal is not None:
             self.base = plate_model if plate_model is not None else PlateModel.build(

@@ -18,7 +18,7 @@ import sys
 import numpy as np
 
 from engine.laminate import PhysicsError
-from engine.plate_fe import FEError, PlateModel
+from engine.plate import FEError, PlateModel
 
 from .cmdutil import add_json_option
 from .errors import UserError

@@ -9,7 +9,7 @@ constants themselves always come from the workflows' results.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -42,15 +42,6 @@ class Scalogram:
     wavelet: str
 
 
-def _wavelet(name: Any) -> waves.Wavelet:
-    """The wavelet named 'cmorB-C' (the analysis' choice); the paper's CFRP one otherwise.
-    (``engine.waves.Wavelet.from_name`` replaces this once it exists.)"""
-    if isinstance(name, str) and name.startswith("cmor") and "-" in name:
-        b, c = name[4:].split("-", 1)
-        return waves.Wavelet(float(b), float(c))
-    return waves.PAPER_CFRP
-
-
 def scalogram(record: Record, channel: str, analysis: Mapping | None = None,
               n_freqs: int = 100) -> Scalogram:
     """The scalogram of ``channel`` with the wavelet and band of a stored analysis
@@ -58,7 +49,7 @@ def scalogram(record: Record, channel: str, analysis: Mapping | None = None,
     fmax = min(200 kHz, 0.4 x rate)."""
     analysis = analysis or {}
     fs = record.timing.rate_hz
-    wl = _wavelet((analysis.get("arrivals") or {}).get("wavelet"))
+    wl = waves.Wavelet.from_name((analysis.get("arrivals") or {}).get("wavelet"), default=waves.PAPER_CFRP)
     band = (analysis.get("settings") or {}).get("wave_band_hz")
     if isinstance(band, (list, tuple, np.ndarray)) and len(band) == 2:
         fmin, fmax = float(band[0]), float(band[1])

@@ -161,7 +161,7 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
                 raise UserError(f"values of shape {shapes.shape}: expected ({f.size}, {len(points)}) "
                                 "with points [[x, y], ...]", file=src, key="modal.mode_shapes")
         if modal_model is None:
-            from engine.plate_fe import PlateModel  # noqa: PLC0415
+            from engine.plate import PlateModel  # noqa: PLC0415
             try:
                 modal_model = PlateModel.build(spec.laminate, spec.length, spec.width)
             except PhysicsError as e:
@@ -561,7 +561,7 @@ def synthetic_features(specimen: str | Specimen = "cfrp", *, n_modes: int | None
     rng = np.random.default_rng(seed)
     doc: dict = {"specimen": specimen if isinstance(specimen, str) else None}
     if n_modes:
-        from engine.plate_fe import PlateModel  # noqa: PLC0415
+        from engine.plate import PlateModel  # noqa: PLC0415
         model = modal_model or PlateModel.build(spec.laminate, spec.length, spec.width)
         modes = model.solve(n_modes, params=dict(params) if params else None)
         f = modes.frequencies_hz

@@ -125,11 +125,11 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     problem = GapProblem(true_lam, length, width, rig,
                          ModalData(np.ones(N_MODES), np.ones(N_MODES), pairing="order"), waves)
     if outside:
-        from engine.plate_fe import Mesh
+        from engine.plate import Mesh
         mesh = Mesh.default(length, width, lam.thickness, n=9)
     plate_model = None
     if kind == "soft_patch" or outside:
-        from engine.plate_fe import PlateModel
+        from engine.plate import PlateModel
         plate_model = PlateModel.build(true_lam, length, width, mesh)
         if kind == "soft_patch":
             x0, y0 = rng.uniform(0.08, 0.25, size=2)

@@ -1,7 +1,7 @@
 """The simulated rig: a ``drivers.protocol.Device`` whose records are synthesised.
 
 Vibration shots (``role='hammer'``, ~10 kHz): the plate modes of
-``engine.plate_fe`` (mass-normalised shapes phi) respond to a half-sine hammer
+``engine.plate`` (mass-normalised shapes phi) respond to a half-sine hammer
 force F(t) = F0 sin(pi t / T), 0 <= t <= T, at (xh, yh). Each mode is a damped
 oscillator q'' + 2 zeta w q' + w^2 q = phi(xh, yh) F(t), solved in closed form
 (steady sine + free transient, and the same shifted by T, which cancels the
@@ -146,7 +146,7 @@ def effective_laminate(lam: Laminate, effects: Effects) -> Laminate:
 def plate_modes(lam: Laminate, length: float, width: float, n_modes: int,
                 masses: tuple = (), springs: tuple = (), mesh=None):
     """(PlateModel, Modes) for the plate with point masses/springs; cached."""
-    from engine.plate_fe import PlateModel
+    from engine.plate import PlateModel
     model = PlateModel.build(lam, length, width, mesh)
     if masses:
         model = model.with_point_masses(masses)

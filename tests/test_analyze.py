@@ -1,7 +1,7 @@
 """labid analyze: run file (simulated rig) -> features file and /results/analysis.
 
 The references are the models the simulated rig was built from: the plate
-FE modes of the specimen with the rig's accelerometer masses (engine.plate_fe)
+FE modes of the specimen with the rig's accelerometer masses (engine.plate)
 and its SAFE A0 curve (engine.safe), with the rig's injected damping (0.5 %).
 """
 from __future__ import annotations
@@ -35,7 +35,7 @@ def analysed(run_file: Path):
 
 @pytest.mark.slow
 def test_modal_features_match_the_plate_model(analysed):
-    from engine.plate_fe import PlateModel
+    from engine.plate import PlateModel
     from labid.specimen import load_specimen
     _, feats, result = analysed
     assert result == feats  # --json is the features document

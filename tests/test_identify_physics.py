@@ -7,7 +7,7 @@ import pytest
 
 from engine.identify import DataBlock, estimate, linearised_block, nelder_mead_fit
 from engine.identify_models import wave_block
-from engine.plate_fe import PlateModel
+from engine.plate import PlateModel
 from engine.safe import group_velocity
 from labid.identification import problem_from_features, run, synthetic_features
 from labid.specimen import load_specimen

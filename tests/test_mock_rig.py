@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 from scipy.signal import find_peaks
 
 from drivers.protocol import Device, NoTrigger
-from engine.plate_fe import natural_frequencies
+from engine.plate import natural_frequencies
 from labid.acquisition import double_hit
 from labid.rig import load_rig, read_rig_text, rig_from_text
 from labid.specimen import load_specimen
@@ -60,8 +60,8 @@ def test_simulated_device_speaks_the_protocol(cfrp):
 @pytest.mark.slow
 def test_accelerometer_spectrum_peaks_at_plate_fe_frequencies(cfrp):
     """The strongest spectral peaks of an accelerometer record sit on the plate FE
-    natural frequencies (computed here independently by engine.plate_fe)."""
-    from engine.plate_fe import PlateModel
+    natural frequencies (computed here independently by engine.plate)."""
+    from engine.plate import PlateModel
     rig = load_rig()
     model = PlateModel.build(cfrp.laminate, cfrp.length, cfrp.width).with_point_masses(
         [(c.x, c.y, c.mass_kg) for c in rig.accelerometers])     # the declared sensor masses
@@ -169,7 +169,7 @@ def test_sensor_mass_and_springs_put_the_peaks_on_the_modified_plate(cfrp):
     """With extra accelerometer mass (springs at the supports) the record's peaks
     follow the FE frequencies of the plate carrying them, not the nominal ones
     (the nominal plate carries the masses the rig file declares)."""
-    from engine.plate_fe import PlateModel
+    from engine.plate import PlateModel
     rig = load_rig()
     bare = PlateModel.build(cfrp.laminate, cfrp.length, cfrp.width)
     accs = [(c.x, c.y, c.mass_kg) for c in rig.accelerometers]

@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 
 from engine import modal
+from engine.plate import PlateModel
+from labid.specimen import load_specimen
 
 FS = 10_000.0
 # the paper's Table 1 frequencies (Hz), with damping ratios typical of a hung plate
@@ -192,13 +194,11 @@ NOISE_REL = 2e-3  # modes from ~10 to ~50 dB SNR
 
 @functools.lru_cache(maxsize=1)
 def _cfrp_hammer_test():
-    """Simulated hammer test of the CFRP plate (modes from engine.plate_fe), 4
+    """Simulated hammer test of the CFRP plate (modes from engine.plate), 4
     accelerometers, one on a nodal line of mode 3, damping 0.4-0.8 %, 5 hits.
     The responses are built here in the frequency domain from the continuous
     acceleration FRF of each mode (independent of the sampled-pole model the
     estimator uses). Returns (fn, zeta, snr_db per mode, hits, forces, pre)."""
-    from engine.plate_fe import PlateModel
-    from labid.specimen import load_specimen
     sp = load_specimen("cfrp")
     model = PlateModel.build(sp.laminate, sp.length, sp.width)
     modes = model.solve(30)

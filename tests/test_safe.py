@@ -8,6 +8,9 @@ import scipy.linalg as sla
 from engine import safe
 from engine.laminate import Laminate, Material, Ply, rotate_z, stiffness_3d
 from engine.safe import SafeError, dispersion, group_velocity, safe_model
+from engine.safe.branches import solve_full
+from engine.safe.labels import branch_table
+from engine.safe.model import class_bases, coupling
 
 # ---- ORACLES.md: exact Rayleigh-Lamb, aluminium E=70 GPa, nu=0.33, rho=2700, h=1 mm
 AL = Material.isotropic_from(70e9, 2700.0, nu=0.33, name="Al")
@@ -151,11 +154,11 @@ def test_reduced_solver_matches_full_newton():
     m = safe_model(lam, 20.0, fmax_hz=2e5)
     f = np.array([20e3, 80e3, 200e3])
     d = safe.dispersion_from_model(m, f)
-    rows = {r["label"]: r for r in safe._branch_table(m, 2 * np.pi * f.max())}
+    rows = {r["label"]: r for r in branch_table(m, 2 * np.pi * f.max())}
     for lbl in ("A0", "S0", "SH0"):
         r = rows[lbl]
         for i, fi in enumerate(f):
-            k, cg = safe._solve_full(m.classes[r["ci"]], 2 * np.pi * fi, r["j"], d.mode(lbl).wavenumber_rad_m[i])
+            k, cg = solve_full(m.classes[r["ci"]], 2 * np.pi * fi, r["j"], d.mode(lbl).wavenumber_rad_m[i])
             # the Rayleigh-Ritz reduction costs far less than the 1e-6 discretisation target
             assert abs(d.mode(lbl).wavenumber_rad_m[i] / k - 1) < 1e-8
             assert abs(d.mode(lbl).group_velocity_m_s[i] / cg - 1) < 1e-7
@@ -232,7 +235,7 @@ def test_many_modes_with_veering_match_full_newton():
     m = safe_model(lam, 30.0, fmax_hz=f.max())
     d = safe.dispersion_from_model(m, f)
     assert len(d.modes) >= 8
-    rows = {r["label"]: r for r in safe._branch_table(m, 2 * np.pi * f.max())}
+    rows = {r["label"]: r for r in branch_table(m, 2 * np.pi * f.max())}
     n = 0
     for mode in d.modes:
         r = rows[mode.label]
@@ -240,7 +243,7 @@ def test_many_modes_with_veering_match_full_newton():
             k = mode.wavenumber_rad_m[i]
             if not np.isfinite(k):
                 continue
-            kf, cg = safe._solve_full(m.classes[r["ci"]], 2 * np.pi * f[i], r["j"], k)
+            kf, cg = solve_full(m.classes[r["ci"]], 2 * np.pi * f[i], r["j"], k)
             assert abs(k / kf - 1) < 1e-7, (mode.label, f[i])
             assert abs(mode.group_velocity_m_s[i] / cg - 1) < 1e-6, (mode.label, f[i])
             n += 1
@@ -255,17 +258,17 @@ def test_class_split_is_exact(angles, direction):
     split is refused, the coupling really exists."""
     lam = layup(angles)
     m = safe_model(lam, direction, order=4, elements_per_ply=1)
-    Qs = safe._class_bases(m.z_nodes, m.info["mirror_symmetric"], m.info["sh_decoupled"])
+    Qs = class_bases(m.z_nodes, m.info["mirror_symmetric"], m.info["sh_decoupled"])
     mats = (m.K0, m.K1, m.K2, m.M)
     for a in range(len(Qs)):
         for b in range(a + 1, len(Qs)):
-            assert max(safe._coupling(X, Qs[a][1], Qs[b][1]) for X in mats) < 1e-13
+            assert max(coupling(X, Qs[a][1], Qs[b][1]) for X in mats) < 1e-13
     # the finer splits that were not used would leave coupling
-    both = safe._class_bases(m.z_nodes, True, True) if np.allclose(m.z_nodes, -m.z_nodes[::-1]) else None
+    both = class_bases(m.z_nodes, True, True) if np.allclose(m.z_nodes, -m.z_nodes[::-1]) else None
     if not m.info["sh_decoupled"]:
-        lamb = [q for k, q, _ in safe._class_bases(m.z_nodes, False, True) if k == "lamb"][0]
-        shq = [q for k, q, _ in safe._class_bases(m.z_nodes, False, True) if k == "sh"][0]
-        assert max(safe._coupling(X, lamb, shq) for X in mats) > 1e-6
+        lamb = [q for k, q, _ in class_bases(m.z_nodes, False, True) if k == "lamb"][0]
+        shq = [q for k, q, _ in class_bases(m.z_nodes, False, True) if k == "sh"][0]
+        assert max(coupling(X, lamb, shq) for X in mats) > 1e-6
     if not m.info["mirror_symmetric"] and both is not None:
-        sym, anti = [q for k, q, _ in safe._class_bases(m.z_nodes, True, False)]
-        assert max(safe._coupling(X, sym, anti) for X in mats) > 1e-6
+        sym, anti = [q for k, q, _ in class_bases(m.z_nodes, True, False)]
+        assert max(coupling(X, sym, anti) for X in mats) > 1e-6

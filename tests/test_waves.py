@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 import pywt
 
-from engine import waves
+from engine import safe, waves
+from engine.waves import Wavelet, independent_points
+from labid.specimen import load_specimen
 
 FS = 1e6
 # the paper's aluminium plate, 3.175 mm, sensor 0.375 m from the hammer
@@ -238,10 +240,24 @@ def test_bad_input():
         waves.velocity_gate(0.3, 2000, 1000)
 
 
+@pytest.mark.parametrize("name", ["cmor2-1", "cmor2-5", "cmor0.5-1", "cmor1.5-0.6667", "cmor2-2.5"])
+def test_wavelet_from_name_reads_pywavelets_names(name):
+    """B and C as PyWavelets itself reads them from the name, and the name round-trips."""
+    wl = waves.Wavelet.from_name(name)
+    ref = pywt.ContinuousWavelet(name)
+    assert (wl.bandwidth, wl.center) == pytest.approx((ref.bandwidth_frequency, ref.center_frequency), rel=1e-7)
+    assert wl.name == name
+
+
+def test_wavelet_from_name_rejects_other_names():
+    for bad in ("morl", "cmor2", "cmor-1", "cmor2-1-3", "cmor0-1", "", None, 2.0):
+        with pytest.raises(waves.WaveError):
+            waves.Wavelet.from_name(bad)
+        assert waves.Wavelet.from_name(bad, default=waves.PAPER_CFRP) == waves.PAPER_CFRP
+
+
 # --------------------------------------------------------------------------- SAFE-synthesised records
 def _safe_case(name, distance, force, fs, n, wl, fmax, noise_rel=1e-3, seed=0):
-    from engine import safe
-    from labid.specimen import load_specimen
     lam = load_specimen(name).laminate
     u = safe.transient_response(lam, distance, force, fs, n, quantity="strain")
     u = u + noise_rel * np.abs(u).max() * np.random.default_rng(seed).normal(size=n)
@@ -259,7 +275,6 @@ def _safe_case(name, distance, force, fs, n, wl, fmax, noise_rel=1e-3, seed=0):
 def test_safe_aluminium_hammer_a0_within_1_percent():
     """Paper section 3: aluminium 3.175 mm, hammer, strain 0.375 m away, cmor2-1 to
     50 kHz; source times from the force record's scalogram."""
-    from engine import safe
     fs, n = 1e6, 4096
     force = safe.hammer_force(20e-6)
     wl = waves.PAPER_ALUMINIUM
@@ -279,7 +294,6 @@ def test_safe_aluminium_hammer_a0_within_1_percent():
 def test_safe_cfrp_pencil_lead_a0_within_1_percent():
     """Paper Fig. 8-9: CFRP [0/+-45]2s, pencil-lead break, cmor2-5 to 200 kHz;
     source to sensor (source time: middle of the 1 us rise) and between two sensors."""
-    from engine import safe
     fs, n = 2e6, 4096
     plb = safe.pencil_lead_break(1e-6)
     wl = waves.PAPER_CFRP
@@ -314,7 +328,6 @@ def test_independent_points_are_a_wavelet_resolution_apart():
     """White-noise CWT coefficients at neighbouring kept frequencies correlate by at
     most 1/e (the normalised overlap of the two wavelet spectra), and the kept set
     is not needlessly sparse: the gap between neighbours stays below twice that."""
-    from engine.waves import Wavelet, independent_points
     wl = Wavelet(2.0, 2.0)
     f = np.linspace(10e3, 200e3, 100)
     keep = independent_points(f, np.ones(f.size, bool), wl)

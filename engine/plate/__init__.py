@@ -1,0 +1,35 @@
+"""Free-free Mindlin (first-order shear) laminated plate, finite elements.
+
+Paper section 2 (Eqs. 1-14): displacements u = u0 + z bx, v = v0 + z by,
+w = w0; energy from the laminate resultants A, B, D, H (``engine.laminate.abdh``,
+shear factor 5/6). Units SI: m, kg, s, Pa; eigenvalues omega^2 in rad^2/s^2.
+
+Modules (each readable alone):
+
+* :mod:`.element` -- the 16-node bicubic element with assumed transverse shear
+  strains: shape functions, quadrature, reference matrices;
+* :mod:`.stiffness` -- material linearity: 21 laminate coefficients per material,
+  their derivatives with respect to the engineering constants;
+* :mod:`.mesh` -- tensor-grid meshes, uniform or graded at the free edges;
+* :mod:`.sparse` -- the fixed sparse pattern, element scatter and eigen blocks
+  (the measured reason for the hand-made pattern is in its docstring);
+* :mod:`.model` -- ``PlateModel`` (precomputed parts, solve per parameter set,
+  point masses, springs, stiffness loss, sensitivities) and ``Modes``.
+
+Public API (re-exported here): ``PlateModel``, ``Modes``, ``Mesh``, ``FEError``,
+``natural_frequencies``, ``coefficients_from_abdh``, ``DEFAULT_ELEMENTS``,
+``EDGE_LAYER``, ``COEF_NAMES``, ``Q_NAMES``, ``NODE_DOF``.
+
+Package-internal (public names shared by the modules of this package; not for
+other layers): ``element.shape_2d``, ``element.combo_scales``,
+``element.reference_matrices``, ``element.SYM3``/``SYM2``, ``stiffness.q_vector``,
+``stiffness.q_derivatives``, ``stiffness.material_maps``, ``sparse.Pattern``,
+``sparse.Block``, ``sparse.point_matrix``.
+"""
+from .element import NODE_DOF, FEError
+from .mesh import DEFAULT_ELEMENTS, EDGE_LAYER, Mesh
+from .model import Modes, PlateModel, natural_frequencies
+from .stiffness import COEF_NAMES, Q_NAMES, coefficients_from_abdh
+
+__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "coefficients_from_abdh",
+           "DEFAULT_ELEMENTS", "EDGE_LAYER", "COEF_NAMES", "Q_NAMES", "NODE_DOF", "FEError"]

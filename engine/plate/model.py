@@ -1,0 +1,425 @@
+"""PlateModel: a free-free laminated Mindlin plate, precomputed once, solved per parameter set.
+
+Eigen solver: shift-invert Lanczos (ARPACK eigsh) with a small negative shift,
+SuperLU factorisation of K - sigma M. When B = 0 and I2 = 0 (symmetric
+layups) the bending (w0, bx, by) and membrane (u0, v0) blocks are solved
+apart. The six rigid-body modes are recognised by their mass-weighted
+projection on the analytic rigid-body vectors and excluded; exactly six must
+be found.
+
+Units SI: m, kg, s, Pa; eigenvalues lambda = omega^2 in rad^2/s^2.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import eigh as sl_eigh
+
+from ..laminate import Laminate, Material
+from .element import NODE_DOF, FEError, reference_matrices, shape_2d
+from .mesh import Mesh
+from .sparse import Block, Pattern, point_matrix
+from .stiffness import material_maps, q_derivatives, q_vector
+
+__all__ = ["Modes", "PlateModel", "natural_frequencies"]
+
+_SPARE = 4
+
+
+# --------------------------------------------------------------- modes --
+@dataclass(frozen=True)
+class Modes:
+    """Elastic modes, ascending.
+
+    ``shapes`` (n_dof, n) are mass-normalised (phi' M phi = 1, units 1/sqrt(kg));
+    ``omega2`` in rad^2/s^2; ``rigid_max_omega`` (rad/s) is the largest |omega|
+    among the six rigid-body modes that were detected and excluded (with
+    springs: the suspension modes).
+    """
+
+    frequencies_hz: np.ndarray
+    omega2: np.ndarray
+    shapes: np.ndarray
+    rigid_max_omega: float
+    params: Mapping[str, float] = field(default_factory=dict)
+    material: str | None = None
+
+
+
+class PlateModel:
+    """Free-free laminated Mindlin plate: precomputed parts, solve per parameter set."""
+
+    def __init__(self, laminate: Laminate, mesh: Mesh, shear_factor: float = 5.0 / 6.0,
+                 *, _parts=None, k_add=None, m_add=None, _cache=None):
+        self.laminate, self.mesh, self.shear_factor = laminate, mesh, shear_factor
+        if _parts is None:
+            Kref, Mref = reference_matrices()
+            _parts = (Kref, Mref, Pattern.build(mesh), material_maps(laminate, shear_factor))
+        self._Ke, self._Me, self._pat, self._maps = _parts
+        self._Kflat = np.ascontiguousarray(self._Ke.transpose(1, 0, 2, 3).reshape(21, -1))
+        nnz = self._pat.indices.size
+        self._k_add = np.zeros(nnz) if k_add is None else k_add
+        self._m_add = np.zeros(nnz) if m_add is None else m_add
+        cross = self._pat.cross
+        self._add_cross = bool(np.any(self._k_add[cross] != 0) or np.any(self._m_add[cross] != 0))
+        self._cache: dict = {} if _cache is None else _cache  # mesh-only data, shared by derived models
+        self._mass_memo: dict | None = None  # mass data of the last inertias (see _mass)
+        self._mem_memo: dict | None = None   # last membrane solve (see _membrane_modes)
+        # no added stiffness on the membrane DOFs (the membrane eigenvalue bound needs it)
+        fr = np.repeat(np.arange(len(self._pat.indptr) - 1), np.diff(self._pat.indptr)) % NODE_DOF
+        self._membrane_k_free = not np.any(self._k_add[(fr < 2) & (self._pat.indices % NODE_DOF < 2)])
+
+    # -- construction ---------------------------------------------------
+    @classmethod
+    def build(cls, laminate: Laminate, length: float, width: float, mesh=None,
+              shear_factor: float = 5.0 / 6.0) -> "PlateModel":
+        """Precompute the parts.
+
+        ``mesh``: None (``Mesh.default``, graded at the edges), (nx, ny) for a
+        uniform nx x ny mesh, or a Mesh.
+        """
+        if mesh is None:
+            m = Mesh.default(length, width, laminate.thickness)
+        elif isinstance(mesh, Mesh):
+            m = mesh
+        else:
+            try:
+                nx, ny = mesh
+            except (TypeError, ValueError):
+                raise FEError(f"mesh = {mesh!r}: expected (nx, ny) elements") from None
+            m = Mesh(nx, ny, float(length), float(width))
+        for mat in laminate.materials.values():
+            mat.check()
+        return cls(laminate, m, shear_factor)
+
+    @property
+    def k_add(self) -> np.ndarray:
+        """Added stiffness (springs, stiffness loss) on the sparse pattern's entries (read-only)."""
+        v = self._k_add.view()
+        v.flags.writeable = False
+        return v
+
+    @property
+    def m_add(self) -> np.ndarray:
+        """Added mass (point masses) on the sparse pattern's entries (read-only)."""
+        v = self._m_add.view()
+        v.flags.writeable = False
+        return v
+
+    def with_laminate(self, laminate: Laminate) -> "PlateModel":
+        """The same mesh, shear factor and added stiffness and mass with another laminate
+        (e.g. scaled thickness); mesh-only data are shared."""
+        Kref, Mref = self._Ke, self._Me
+        return PlateModel(laminate, self.mesh, self.shear_factor,
+                          _parts=(Kref, Mref, self._pat, material_maps(laminate, self.shear_factor)),
+                          k_add=self._k_add, m_add=self._m_add, _cache=self._cache)
+
+    def _derived(self, k_add=None, m_add=None) -> "PlateModel":
+        return PlateModel(self.laminate, self.mesh, self.shear_factor,
+                          _parts=(self._Ke, self._Me, self._pat, self._maps),
+                          k_add=self._k_add if k_add is None else k_add,
+                          m_add=self._m_add if m_add is None else m_add, _cache=self._cache)
+
+    def with_point_masses(self, masses: Iterable[Sequence[float]]) -> "PlateModel":
+        """Add point masses (x, y, m) or (x, y, m, Ix, Iy): m in kg on u0, v0, w0;
+        rotary inertias in kg m^2, Ix about the x axis (acts on by), Iy about y (on bx)."""
+        add = self._m_add.copy()
+        for row in masses:
+            row = tuple(float(v) for v in row)
+            if len(row) not in (3, 5):
+                raise FEError(f"point mass {row!r}: expected (x, y, m_kg) or (x, y, m_kg, Ix, Iy)")
+            x, y, m = row[:3]
+            Ix, Iy = row[3:] if len(row) == 5 else (0.0, 0.0)
+            if not (m >= 0 and Ix >= 0 and Iy >= 0):
+                raise FEError(f"point mass {row!r}: expected non-negative mass and inertias")
+            add += point_matrix(self.mesh, self._pat, x, y, (m, m, m, Iy, Ix))
+        return self._derived(m_add=add)
+
+    def with_springs(self, springs: Iterable[Sequence[float]]) -> "PlateModel":
+        """Add grounded transverse springs (x, y, kz) on w0, kz in N/m."""
+        add = self._k_add.copy()
+        for row in springs:
+            row = tuple(float(v) for v in row)
+            if len(row) != 3 or not row[2] >= 0:
+                raise FEError(f"spring {row!r}: expected (x, y, kz_N_per_m) with kz >= 0")
+            add += point_matrix(self.mesh, self._pat, row[0], row[1], (0, 0, row[2], 0, 0))
+        return self._derived(k_add=add)
+
+    def with_stiffness_loss(self, x0: float, y0: float, size: float, loss: float,
+                            params: Mapping[str, float] | None = None,
+                            material: str | None = None) -> "PlateModel":
+        """A local stiffness loss (damage, a soft patch): inside the square of side ``size``
+        (m) centred at (x0, y0), the stiffness drops by the fraction ``loss`` (each element
+        by ``loss`` times its area fraction inside the square). The loss is that of the
+        stiffness at ``params`` and stays fixed when the model is solved with others."""
+        if not 0.0 <= loss <= 1.0 or not size > 0:
+            raise FEError(f"stiffness loss {loss!r} over {size!r} m: expected 0 <= loss <= 1 and size > 0")
+        c, _ = self.coefficients(params, material)
+        pat = self._pat
+        Kc = np.tensordot(c, self._Ke, axes=(0, 1)).reshape(self._Ke.shape[0], -1)
+        Ke_type = pat.type_scales @ Kc                       # (n_types, element matrix)
+        xe, ye = self.mesh.xe, self.mesh.ye
+        ox = np.clip(np.minimum(xe[1:], x0 + size / 2) - np.maximum(xe[:-1], x0 - size / 2), 0, None) / np.diff(xe)
+        oy = np.clip(np.minimum(ye[1:], y0 + size / 2) - np.maximum(ye[:-1], y0 - size / 2), 0, None) / np.diff(ye)
+        add = self._k_add.copy()
+        for ey in np.flatnonzero(oy):
+            for ex in np.flatnonzero(ox):
+                e = ey * self.mesh.nx + ex
+                np.add.at(add, pat.elem_pos[e], -loss * ox[ex] * oy[ey] * Ke_type[pat.elem_type[e]])
+        return self._derived(k_add=add)
+
+    # -- parameters -----------------------------------------------------
+    def _material_name(self, material: str | None) -> str:
+        if material is None:
+            if len(self._maps) != 1:
+                raise KeyError(f"laminate has materials {sorted(self._maps)}; name the one to update")
+            return next(iter(self._maps))
+        if material not in self._maps:
+            raise KeyError(f"material {material!r} not in laminate; expected one of {sorted(self._maps)}")
+        return material
+
+    def _materials(self, params, material) -> dict[str, Material]:
+        mats = dict(self.laminate.materials)
+        if params:
+            name = self._material_name(material)
+            mats[name] = mats[name].with_params(**params)
+            mats[name].check()
+        return mats
+
+    def coefficients(self, params: Mapping[str, float] | None = None,
+                     material: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(21 stiffness coefficients per COEF_NAMES, (I1, I2, I3)) for a parameter set."""
+        c = np.zeros(21)
+        inert = np.zeros(3)
+        for name, mat in self._materials(params, material).items():
+            L, R = self._maps[name]
+            c += L @ q_vector(mat)
+            inert += R * mat.density
+        return c, inert
+
+    def matrices(self, params=None, material=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """Global K (N/m) and M (kg), CSR (M on its own, sparser pattern)."""
+        c, inert = self.coefficients(params, material)
+        kd, _ = self._data(c, inert)
+        return self._pat.matrix(kd), self._mass(inert)["M"].copy()
+
+    def _data(self, c: np.ndarray, inert: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """K and M data vectors on the common pattern."""
+        pat = self._pat
+        Kc = (c @ self._Kflat).reshape(6, 6400)   # unit element matrix per scale combo
+        kd = pat.scatter @ (pat.type_scales @ Kc).ravel() + self._k_add
+        return kd, self._mass(inert)["md"]
+
+    def _mass(self, inert: np.ndarray) -> dict:
+        """Mass-side data for inertias (I1, I2, I3), memoised for the last inertias
+        (M depends on the density only, fixed during most identifications):
+        ``md`` (data on the common pattern), ``M`` (global CSR) and, filled on
+        demand, ``MR`` (M times the rigid-body vectors), ``G`` (R' M R) and
+        per-block ``(mb, Mb)``."""
+        key = np.asarray(inert, dtype=float).tobytes()
+        memo = self._mass_memo
+        if memo is None or memo["key"] != key:
+            pat = self._pat
+            Mc = np.tensordot(np.asarray(inert, dtype=float), self._Me, 1).ravel()
+            md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
+            md.flags.writeable = False
+            memo = self._mass_memo = {"key": key, "md": md, "M": pat.mass_matrix(md)}
+        return memo
+
+    def _block_mass(self, name: str, inert: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        memo = self._mass(inert)
+        if name not in memo:
+            memo[name] = self._block(name).mass(memo["md"])
+        return memo[name]
+
+    # -- rigid body modes --------------------------------------------------
+    def rigid_body_vectors(self) -> np.ndarray:
+        """(n_dof, 6) translations x, y, z; rotation about z; rotations about x and y."""
+        if "R" in self._cache:
+            return self._cache["R"]
+        xy = self.mesh.coords
+        n = xy.shape[0]
+        R = np.zeros((n, NODE_DOF, 6))
+        R[:, 0, 0] = R[:, 1, 1] = R[:, 2, 2] = 1.0
+        R[:, 0, 3], R[:, 1, 3] = -xy[:, 1], xy[:, 0]
+        R[:, 2, 4], R[:, 4, 4] = xy[:, 1], -1.0
+        R[:, 2, 5], R[:, 3, 5] = xy[:, 0], -1.0
+        self._cache["R"] = R.reshape(n * NODE_DOF, 6)
+        return self._cache["R"]
+
+    # -- solve --------------------------------------------------------------
+    def solve(self, n_modes: int = 10, params: Mapping[str, float] | None = None,
+              material: str | None = None, sigma: float | None = None) -> Modes:
+        """The n_modes lowest elastic modes (rigid-body modes detected and excluded).
+
+        ``params``: constants of ``material`` (contract names) replacing the
+        laminate's; K and M are recombined from the precomputed parts.
+        """
+        c, inert = self.coefficients(params, material)
+        modes = self.solve_coefficients(c, inert, n_modes, sigma)
+        return Modes(modes.frequencies_hz, modes.omega2, modes.shapes, modes.rigid_max_omega,
+                     dict(params or {}), material)
+
+    def solve_coefficients(self, c: np.ndarray, inertias: Sequence[float], n_modes: int = 10,
+                           sigma: float | None = None) -> Modes:
+        """Modes for explicit laminate coefficients (COEF_NAMES order, see
+        ``coefficients_from_abdh``) and inertias (I1, I2, I3)."""
+        if isinstance(n_modes, bool) or int(n_modes) != n_modes or n_modes < 1:
+            raise FEError(f"n_modes = {n_modes!r}: expected a positive integer")
+        n_modes = int(n_modes)
+        c, inert = np.asarray(c, dtype=float), np.asarray(inertias, dtype=float)
+        kd, md = self._data(c, inert)
+        n = self.mesh.n_dof
+        if n_modes + 6 + _SPARE >= 0.4 * n - 1:
+            raise FEError(f"n_modes = {n_modes}: too many for a mesh of {n} DOF")
+        if sigma is None:
+            sigma = -1e-3 * self._omega2_scale(c, inert)
+        h = self.laminate.thickness
+        coupled = (self._add_cross or np.abs(c[6:12]).max() > 1e-10 * np.abs(c[:6]).max() * h
+                   or abs(inert[1]) > 1e-10 * inert[0] * h)
+        if coupled:
+            lam, vec = self._block("all").eig(kd, md, n_modes + 6 + _SPARE, sigma, n,
+                                              self._block_mass("all", inert))
+        else:
+            # B = 0, I2 = 0: bending (w0, bx, by) and membrane (u0, v0) decouple;
+            # 3 rigid modes each. Membrane modes are usually far above.
+            # ncv = k + 13: ~11 % faster than 2k + 1 for 10 CFRP modes (bench/RESULTS.md,
+            # Identification), eigenvalues equal to 1e-12
+            kb = n_modes + 3 + _SPARE
+            lam, vec = self._block("bending").eig(kd, md, kb, sigma, n, self._block_mass("bending", inert),
+                                                  ncv=max(kb + 13, 20))
+            top = np.sort(lam)[min(3 + n_modes, lam.size) - 1]
+            lam_m, vec_m = self._membrane_modes(kd, c, inert, top, sigma, n)
+            lam, vec = np.concatenate([lam, lam_m]), np.hstack([vec, vec_m])
+        k = lam.size
+        order = np.argsort(lam)
+        lam, vec = lam[order], vec[:, order]
+        rigid = self._rigid_mask(vec, self._mass(inert))
+        if rigid.sum() != 6:
+            raise FEError(f"found {int(rigid.sum())} rigid-body modes among the {k} lowest, "
+                          "expected exactly 6")
+        elastic = ~rigid
+        if np.any(lam[elastic] < 1e-6 * self._omega2_scale(c, inert)):
+            raise FEError("spurious zero-energy mode: elastic mode with omega^2 ~ 0")
+        lam_e, vec_e = lam[elastic][:n_modes], vec[:, elastic][:, :n_modes]
+        if lam_e.size < n_modes:
+            raise FEError("eigen solver returned too few elastic modes")
+        rigid_max = float(np.sqrt(np.max(np.abs(lam[rigid]))))
+        return Modes(np.sqrt(np.maximum(lam_e, 0.0)) / (2.0 * np.pi), lam_e, vec_e, rigid_max)
+
+    def _membrane_modes(self, kd: np.ndarray, c: np.ndarray, inert: np.ndarray, top: float,
+                        sigma: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Membrane (u0, v0) modes of a decoupled plate: all below ``top`` (omega^2,
+        the highest bending mode wanted) and at least its 3 rigid-body modes.
+
+        The membrane stiffness is linear and positive in the A matrix only, so
+        if A_new - alpha A_old is positive semi-definite every membrane
+        eigenvalue (same M) is at least alpha times the old one (Courant-Fischer).
+        When that bound puts the first elastic membrane mode of the last
+        membrane solve above 1.02 top, that solve's rigid-body pairs (exact
+        null vectors of every K_m, M-normalised for this M) are returned
+        instead of a new solve: none of its elastic modes could be selected.
+        """
+        blk = self._block("membrane")
+        mass = self._block_mass("membrane", inert)
+        A_new = c[[0, 1, 2, 1, 3, 4, 2, 4, 5]].reshape(3, 3)
+        memo = self._mem_memo
+        if memo is not None and memo["mass"] is mass:
+            try:
+                alpha = float(sl_eigh(A_new, memo["A"], eigvals_only=True)[0])
+            except np.linalg.LinAlgError:
+                alpha = 0.0
+            if alpha * memo["lam_elastic"] > 1.02 * top:
+                return memo["lam_rigid"], memo["vec_rigid"]
+        km, nm = 6, blk.dofs.size
+        while True:
+            lam_m, vec_m = blk.eig(kd, self._mass(inert)["md"], km, sigma, n, mass)
+            if lam_m.max() > top or km >= 0.4 * nm:
+                break
+            km *= 2
+        order = np.argsort(lam_m)
+        if self._membrane_k_free and order.size > 3:
+            self._mem_memo = {"mass": mass, "A": A_new, "lam_elastic": float(lam_m[order[3]]),
+                              "lam_rigid": lam_m[order[:3]], "vec_rigid": vec_m[:, order[:3]]}
+        return lam_m, vec_m
+
+    def _block(self, name: str) -> Block:
+        key = "block_" + name
+        if key not in self._cache:
+            fields = {"all": range(NODE_DOF), "bending": (2, 3, 4), "membrane": (0, 1)}[name]
+            self._cache[key] = Block.build(self._pat, tuple(fields))
+        return self._cache[key]
+
+    def _omega2_scale(self, c: np.ndarray, inert: np.ndarray) -> float:
+        """Rough first elastic omega^2 (thin-plate estimate), rad^2/s^2."""
+        Dmax = max(c[12], c[15], c[17])
+        a = max(self.mesh.length, self.mesh.width)
+        return 100.0 * Dmax / (inert[0] * a**4)
+
+    def _rigid_mask(self, vec: np.ndarray, mass: dict) -> np.ndarray:
+        """True for modes whose M-norm lies mostly (> 1/2) in the rigid-body space.
+
+        ``mass``: ``self._mass(inertias)``; M R and R' M R are memoised there."""
+        if "MR" not in mass:
+            R = self.rigid_body_vectors()
+            mass["MR"] = np.asarray(mass["M"] @ R)
+            mass["G"] = R.T @ mass["MR"]
+        P = mass["MR"].T @ vec  # (6, k)
+        content = np.einsum("ik,ik->k", P, np.linalg.solve(mass["G"], P))
+        return content > 0.5
+
+    # -- mode shapes at points ------------------------------------------------
+    def interpolation(self, points: np.ndarray, component: int = 2) -> sp.csr_matrix:
+        """(n_points, n_dof) sparse map from DOFs to one field (2 = w0) at (x, y) points."""
+        e, xi, eta = self.mesh.locate(points)
+        N, _, _ = shape_2d(xi, eta)
+        cols = NODE_DOF * self.mesh.connectivity[e] + component
+        rows = np.repeat(np.arange(len(e)), 16)
+        return sp.csr_matrix((N.ravel(), (rows, cols.ravel())), shape=(len(e), self.mesh.n_dof))
+
+    def shapes_at(self, modes: Modes, points) -> np.ndarray:
+        """(n_modes, n_points) w0 of each mode at (x, y) points, same scaling as modes.shapes."""
+        T = self.interpolation(points)
+        return np.asarray((T @ modes.shapes).T)
+
+    # -- sensitivities ----------------------------------------------------------
+    def eigen_sensitivities(self, modes: Modes, names: Sequence[str], params=None,
+                            material=None) -> np.ndarray:
+        """(n_modes, len(names)) d(omega^2)/dp = phi'(dK/dp - omega^2 dM/dp) phi, rad^2/s^2 per unit p.
+
+        ``params``/``material`` must be those the modes were solved with
+        (defaults: the ones recorded in ``modes``).
+        """
+        if params is None:
+            params, material = modes.params, (modes.material if material is None else material)
+        name = self._material_name(material)
+        mat = self._materials(params, material)[name]
+        dq = q_derivatives(mat, list(names))          # (7, P)
+        L, R = self._maps[name]
+        dc = L @ dq[:6]                                 # (21, P)
+        dI = np.outer(R, dq[6])                         # (3, P)
+        pat = self._pat
+        phi = modes.shapes[self.mesh.element_dofs].transpose(2, 0, 1)   # (m, ne, 80)
+        m = phi.shape[0]
+        nt = pat.type_scales.shape[0]
+        # S[t, mode] = sum over elements of type t of phi_e phi_e' (80 x 80), by matmul
+        S = np.empty((nt, m, 80, 80))
+        for t in range(nt):
+            ph = phi[:, pat.elem_type == t] if nt > 1 else phi
+            np.matmul(ph.transpose(0, 2, 1), ph, out=S[t])
+        Sc = (pat.type_scales.T @ S.reshape(nt, -1)).reshape(6, m, 6400)  # per scale combo
+        if "Ke_rows" not in self._cache:   # (6, 6400, 21) reference K per combo, 21 columns
+            self._cache["Ke_rows"] = np.ascontiguousarray(self._Ke.reshape(6, 21, 6400).transpose(0, 2, 1))
+        Kr = self._cache["Ke_rows"]
+        eK = sum(Sc[p] @ Kr[p] for p in range(6))                       # (m, 21)
+        eM = Sc[0] @ self._Me.reshape(3, 6400).T                        # (m, 3)
+        return eK @ dc - modes.omega2[:, None] * (eM @ dI)
+
+
+def natural_frequencies(laminate: Laminate, length: float, width: float, n: int = 10,
+                        mesh=None) -> np.ndarray:
+    """The n lowest free-free elastic natural frequencies, Hz."""
+    return PlateModel.build(laminate, length, width, mesh).solve(n).frequencies_hz

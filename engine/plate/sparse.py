@@ -1,0 +1,158 @@
+"""Fixed sparse pattern of the global plate matrices, its element scatter and eigen blocks.
+
+Every element matrix is a fixed linear combination of reference matrices
+(:mod:`engine.plate.element`), so a new parameter set needs one 80x80 matrix per
+element size and one scatter of fixed pattern into the CSR data (``Pattern.scatter``);
+the mass matrix keeps its own sub-pattern (~1/5 of the entries: a third of the
+ARPACK time went to M products on the full K pattern), and the DOF blocks of a
+symmetric layup (bending / membrane) have their positions precomputed (``Block``).
+
+Why hand-made (measured, kept on purpose): on the default CFRP mesh (3125 DOF)
+K and M from new constants cost 4.4 ms CPU against 10.7 ms for scipy's textbook
+COO assembly (``coo_matrix((data, (rows, cols))).tocsr()``) and 12.8 ms with the
+bending-block slicing a symmetric layup needs: 17-23 % of the CPU time of every
+solve (bench/bench_plate_pattern.py, bench/RESULTS.md); the matrices are the same
+to 1e-14 (``tests/test_plate_fe.py::test_fixed_pattern_equals_scipy_coo_assembly``).
+
+Eigen solver: shift-invert Lanczos (ARPACK eigsh) with a small negative shift,
+SuperLU factorisation of K - sigma M, on one DOF block (all fields, or the
+bending / membrane fields of a symmetric layup).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from .element import NODE_DOF, combo_scales, shape_2d
+from .mesh import Mesh
+
+__all__ = ["Pattern", "Block", "point_matrix"]
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """Fixed CSR sparsity pattern of the global matrices and the element scatter.
+
+    Elements of equal size share one "type"; data = scatter @ Ke_types.ravel()
+    with Ke_types (n_types, 6400).
+    """
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    scatter: sp.csr_matrix      # (nnz, n_types * 6400)
+    elem_pos: np.ndarray        # (n_elements, 6400) position in data of each element entry
+    elem_type: np.ndarray       # (n_elements,) type index
+    type_scales: np.ndarray     # (n_types, 6) s_pq of each type
+    m_mask: np.ndarray          # (nnz,) bool: positions the mass matrix can fill
+    m_indptr: np.ndarray        # CSR of the mass sub-pattern
+    cross: np.ndarray           # (nnz,) bool: membrane (u0, v0) x bending (w0, bx, by) positions
+
+    @classmethod
+    def build(cls, mesh: Mesh) -> "Pattern":
+        dofs = mesh.element_dofs
+        ne = dofs.shape[0]
+        h = mesh.element_sizes
+        hq = np.round(h / max(mesh.length, mesh.width), 12)
+        _, first, etype = np.unique(hq, axis=0, return_index=True, return_inverse=True)
+        etype = etype.ravel()
+        rows = np.repeat(dofs, 80, axis=1).ravel()
+        cols = np.tile(dofs, (1, 80)).ravel()
+        key = rows.astype(np.int64) * mesh.n_dof + cols
+        ukey, inv = np.unique(key, return_inverse=True)
+        n = mesh.n_dof
+        r, c = np.divmod(ukey, n)
+        indptr = np.searchsorted(r, np.arange(n + 1)).astype(np.int32)
+        local = (etype[:, None] * 6400 + np.arange(6400)).ravel()
+        scatter = sp.csr_matrix((np.ones(inv.size), (inv, local)),
+                                shape=(ukey.size, len(first) * 6400))
+        fr, fc = r % NODE_DOF, c % NODE_DOF
+        pair = np.minimum(fr, fc) * 10 + np.maximum(fr, fc)
+        m_mask = (fr == fc) | (pair == 3) | (pair == 14)  # same field, u-bx, v-by
+        m_indptr = np.concatenate([[0], np.cumsum(np.add.reduceat(m_mask, indptr[:-1]))])
+        cross = (fr < 2) != (fc < 2)
+        return cls(indptr, c.astype(np.int32), scatter, inv.reshape(ne, 6400), etype,
+                   combo_scales(h[first]), m_mask, m_indptr.astype(np.int32), cross)
+
+    def matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        n = len(self.indptr) - 1
+        return sp.csr_matrix((data, self.indices, self.indptr), shape=(n, n))
+
+    def mass_matrix(self, data: np.ndarray) -> sp.csr_matrix:
+        """M from full-pattern data, keeping only its structural non-zeros (~1/5)."""
+        n = len(self.indptr) - 1
+        return sp.csr_matrix((data[self.m_mask], self.indices[self.m_mask], self.m_indptr),
+                             shape=(n, n))
+
+
+@dataclass(frozen=True)
+class Block:
+    """A set of DOF fields whose K, M rows/columns are solved on their own."""
+
+    dofs: np.ndarray      # global DOFs of the block, ascending
+    k_pos: np.ndarray     # positions (in the full pattern data) of the block's entries
+    indptr: np.ndarray    # block CSR pattern (renumbered)
+    indices: np.ndarray
+    m_sel: np.ndarray     # positions (in the block data) where M may be non-zero
+    m_indptr: np.ndarray
+
+    @classmethod
+    def build(cls, pat: Pattern, fields: Sequence[int]) -> "Block":
+        n = len(pat.indptr) - 1
+        rows = np.repeat(np.arange(n), np.diff(pat.indptr))
+        in_b = np.isin(np.arange(n) % NODE_DOF, fields)
+        dofs = np.flatnonzero(in_b)
+        new = np.full(n, -1)
+        new[dofs] = np.arange(dofs.size)
+        k_pos = np.flatnonzero(in_b[rows] & in_b[pat.indices])
+        brow = new[rows[k_pos]]
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(brow, minlength=dofs.size))])
+        m_sel = np.flatnonzero(pat.m_mask[k_pos])
+        m_indptr = np.concatenate([[0], np.cumsum(np.bincount(brow[m_sel], minlength=dofs.size))])
+        return cls(dofs, k_pos, indptr.astype(np.int32), new[pat.indices[k_pos]].astype(np.int32),
+                   m_sel, m_indptr.astype(np.int32))
+
+    def mass(self, md: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        """Block mass data on the block pattern and the block M (CSR, own sparser pattern)."""
+        nb = self.dofs.size
+        mb = md[self.k_pos]
+        return mb, sp.csr_matrix((mb[self.m_sel], self.indices[self.m_sel], self.m_indptr), shape=(nb, nb))
+
+    def eig(self, kd: np.ndarray, md: np.ndarray, k: int, sigma: float, n_full: int,
+            mass: tuple[np.ndarray, sp.csr_matrix] | None = None, ncv: int | None = None):
+        """k eigenpairs nearest sigma (shift-invert), vectors expanded to n_full DOFs.
+
+        ``mass``: ``self.mass(md)`` when already known (M depends on density only);
+        ``ncv``: Lanczos basis size (default max(2k + 1, 20))."""
+        nb = self.dofs.size
+        mb, M = self.mass(md) if mass is None else mass
+        kb = kd[self.k_pos]
+        # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
+        A = sp.csc_matrix((kb - sigma * mb, self.indices, self.indptr), shape=(nb, nb))
+        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                       options={"SymmetricMode": True})
+        op = spla.LinearOperator((nb, nb), matvec=lu.solve, dtype=float)
+        v0 = np.random.default_rng(20120101).standard_normal(nb)  # reproducible
+        lam, vec = spla.eigsh(A, k=k, M=M, sigma=sigma, OPinv=op, which="LM", v0=v0,
+                              ncv=min(nb - 1, ncv or max(2 * k + 1, 20)), tol=1e-10)
+        full = np.zeros((n_full, k))
+        full[self.dofs] = vec
+        return lam, full
+
+
+def point_matrix(mesh: Mesh, pat: Pattern, x: float, y: float,
+                  diag: Sequence[float]) -> np.ndarray:
+    """Data vector of sum_k diag[k] N_k' N_k for the 5 DOF fields at one point."""
+    e, xi, eta = mesh.locate([[x, y]])
+    N, _, _ = shape_2d(xi, eta)
+    NN = np.outer(N[0], N[0])
+    Me = np.zeros((16, NODE_DOF, 16, NODE_DOF))
+    for k, v in enumerate(diag):
+        if v:
+            Me[:, k, :, k] = v * NN
+    data = np.zeros(pat.indices.size)
+    np.add.at(data, pat.elem_pos[e[0]], Me.ravel())
+    return data

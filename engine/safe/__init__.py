@@ -1,0 +1,39 @@
+"""SAFE (semi-analytical finite element) guided waves in a layered anisotropic plate.
+
+Units: SI (m, s, Pa, kg/m^3, Hz, rad/m, m/s); angles in degrees.
+
+Modules (each readable alone):
+
+* :mod:`.model` -- spectral elements through the thickness, the matrices K0, K1~,
+  K2, M of ``[K0 + k K1~ + k^2 K2] q = w^2 M q`` and their uncoupled DOF classes;
+* :mod:`.branches` -- Rayleigh-Ritz reduction of a class and its branches as
+  Chebyshev series in k; roots at given frequencies (the measured reason for this
+  hand-written series is in its docstring);
+* :mod:`.labels` -- names of the branches (A0, S0, SH0, A1, ...);
+* :mod:`.curves` -- dispersion curves and group velocities (the public entry);
+* :mod:`.forces` -- force histories (hammer, pencil-lead break, tone burst);
+* :mod:`.transient` -- forced transient response at a sensor (paper Eqs. 23-26).
+
+Public API (re-exported here): ``dispersion``, ``dispersion_from_model``,
+``group_velocity``, ``Dispersion``, ``ModeCurve``, ``safe_model``, ``SafeModel``,
+``default_discretisation``, ``ply_stiffness``, ``bond_matrix``, ``SafeError``,
+``ForceHistory``, ``hammer_force``, ``pencil_lead_break``, ``tone_burst``,
+``mode_transfer``, ``transient_response``, ``QUANTITIES``.
+
+Package-internal (public names shared by the modules of this package, and used by
+its tests and benchmarks; not for other layers): ``model.DofClass``,
+``model.class_bases``, ``model.coupling``, ``model.TWO_PI``, everything in
+``branches`` and ``labels``.
+"""
+from .curves import Dispersion, ModeCurve, dispersion, dispersion_from_model, group_velocity
+from .forces import ForceHistory, hammer_force, pencil_lead_break, tone_burst
+from .model import SafeError, SafeModel, bond_matrix, default_discretisation, ply_stiffness, safe_model
+from .transient import QUANTITIES, mode_transfer, transient_response
+
+__all__ = [
+    "ModeCurve", "Dispersion", "SafeModel", "SafeError",
+    "safe_model", "dispersion", "dispersion_from_model", "group_velocity", "default_discretisation",
+    "bond_matrix", "ply_stiffness",
+    "ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst",
+    "mode_transfer", "transient_response", "QUANTITIES",
+]

@@ -1,0 +1,434 @@
+"""Branches of a reduced SAFE class model as Chebyshev series in k, and their roots.
+
+Numerics
+--------
+Per uncoupled class, in Cholesky-reduced standard form (M = I):
+
+1. Rayleigh-Ritz basis: the eigenvectors of the lowest branches at a few
+   Chebyshev wavenumbers on [0, k_max] (k_max: where the lowest branch
+   reaches the top frequency). The Ritz frequencies converge quadratically
+   in the basis error; checked against full Newton solves in the tests.
+2. Each branch w_j(k)^2 and its eigenvector slope phi^T K'(k) phi are
+   sampled on nested Chebyshev-Lobatto nodes (33 ... 257) until the
+   Chebyshev tail is below 1e-11; within a class branches never cross, so
+   sorting gives the branch index.
+3. Each requested frequency: Newton on the Chebyshev series of w_j(k)^2
+   (largest root), group velocity = interpolated eigenvector slope / (2 w).
+   Branches whose series does not converge (sharp veerings) fall back to one
+   reduced eigen-solve per frequency with a second-order (perturbation
+   theory) Newton step.
+
+Accuracy is limited by round-off at very low frequency (eigenvalues w^2 are
+small next to the largest of the model): ~1e-7 relative in c_g at 1 kHz for
+the 1.6 mm CFRP, 1e-8 and better above 5 kHz. A complex (viscoelastic) C
+would make K0, K1~, K2 complex symmetric: steps 1-3 would then need a
+non-Hermitian eigensolver (not implemented).
+
+Why a hand-written branch series (measured, kept on purpose)
+------------------------------------------------------------
+A plain solve (the 2N complex companion linearisation in k, ``scipy.linalg.eig``
+at every frequency) of the 12-ply CFRP to 200 kHz costs 6000-8400x the series
+(bench/bench_safe.py, bench/RESULTS.md "engine.safe", section 1) and agrees with
+it to 7.5e-7 in k and 2.4e-6 in c_g (round-off at 1 kHz; < 1e-9 above 60 kHz).
+``tests/test_safe.py::test_reduced_solver_matches_full_newton`` and
+``test_many_modes_with_veering_match_full_newton`` pin the agreement with
+:func:`solve_full` (Newton on the full, unreduced class model per frequency).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+from numpy.polynomial import chebyshev as npcheb
+from scipy.fft import dct
+
+from .model import DofClass
+
+__all__ = ["Reduced", "Branches", "reduce_class", "solve_branches", "cheb_branches",
+           "roots_from_series", "dense_table", "invert_table", "solve_full"]
+
+
+# ---------------------------------------------------------------------------
+# eigen-solves
+def _eig_at(cls: DofClass, k: float, n: int | None = None, vectors: bool = True):
+    A = cls.A0 + k * cls.A1 + (k * k) * cls.A2
+    if n is None or n >= A.shape[0]:
+        return sla.eigh(A, eigvals_only=not vectors, check_finite=False)
+    return sla.eigh(A, eigvals_only=not vectors, subset_by_index=[0, n - 1],
+                    check_finite=False, driver="evr")
+
+
+def _kmax(cls: DofClass, wmax: float, branch: int = 0) -> float:
+    """Wavenumber where the lowest class branch reaches wmax.
+
+    Secant iteration on log(lambda) versus log(k) (lambda ~ k^p, 2 <= p <= 4),
+    eigenvalues only; a fixed number of steps after convergence keeps kmax a
+    smooth function of the elastic constants (identification differentiates
+    through it).
+    """
+    def loglam(k):
+        lam = sla.eigh(cls.A0 + k * cls.A1 + k * k * cls.A2, eigvals_only=True,
+                       subset_by_index=[branch, branch], check_finite=False, driver="evr")[0]
+        return np.log(max(lam, 1e-300))
+
+    target = 2.0 * np.log(wmax)
+    x0 = np.log(wmax / np.sqrt(max(np.max(np.diag(cls.A2)), 1e-30)))
+    y0 = loglam(np.exp(x0))
+    for _ in range(60):     # low wmax, flexural branch: start above the round-off of lambda
+        if y0 > target - 12.0:
+            break
+        x0 += 1.0
+        y0 = loglam(np.exp(x0))
+    x1 = x0 + (target - y0) / 3.0
+    y1 = loglam(np.exp(x1))
+    n_done = 0
+    for _ in range(40):
+        p = (y1 - y0) / (x1 - x0) if x1 != x0 else 3.0
+        p = min(max(p, 0.5), 6.0)
+        x2 = x1 + (target - y1) / p
+        x2 = min(max(x2, x1 - 2.0), x1 + 2.0)
+        x0, y0 = x1, y1
+        x1, y1 = x2, loglam(np.exp(x2))
+        close = abs(x1 - x0) < 1e-3
+        n_done = n_done + 1 if close or n_done else 0
+        if n_done >= 2:
+            break
+    return float(np.exp(x1))
+
+
+def _cheb(n: int, a: float, b: float) -> np.ndarray:
+    x = -np.cos(np.pi * np.arange(n) / (n - 1))
+    return a + (b - a) * (x + 1.0) / 2.0
+
+
+@dataclass(frozen=True)
+class Reduced:
+    """Rayleigh-Ritz reduced class model: a0 + k a1 + k^2 a2, identity mass."""
+
+    a0: np.ndarray
+    a1: np.ndarray
+    a2: np.ndarray
+    basis: np.ndarray         # (n_c, r) orthonormal, psi = basis @ y
+    kmax: float
+    n_branches: int
+
+
+def reduce_class(cls: DofClass, wmax: float, n_k: int | None = None, extra: int | None = None, small_k=(),
+            n_branches: int | None = None) -> Reduced | None:
+    """Reduced model of one class capturing every branch below wmax (or the first n_branches).
+
+    Basis: the n_cut + extra lowest eigenvectors at n_k Chebyshev wavenumbers; by
+    default (6, 1) for up to 3 branches and (8, 2) beyond (veering higher modes
+    need a richer basis: 2e-6 -> 2e-8 in c_g for CFRP up to 2 MHz).
+    """
+    if n_branches is not None and n_branches <= cls.n_rigid:
+        n_cut = n_branches                   # zero cut-off branches only: no count needed
+    else:
+        lam0 = sla.eigh(cls.A0, eigvals_only=True, check_finite=False)
+        lam0[:cls.n_rigid] = 0.0
+        n_cut = int(np.sum(lam0 < (1.05 * wmax) ** 2))
+    if n_branches is not None:
+        n_cut = min(max(n_cut, 0), n_branches)
+        if n_cut == 0:
+            return None
+    if n_cut == 0:
+        return None
+    if n_k is None:
+        n_k = 6 if n_cut <= 3 else 8
+    if extra is None:
+        extra = 1 if n_cut <= 3 else 2
+    n_keep = min(n_cut + extra, cls.A0.shape[0])
+    kmax = 1.1 * _kmax(cls, wmax, 0)
+    vecs = []
+    for k in np.concatenate([_cheb(n_k, 0.0, kmax), kmax * np.array(small_k)]):
+        _, v = _eig_at(cls, k, n_keep)
+        vecs.append(v)
+    V = np.concatenate(vecs, axis=1)
+    U, s, _ = np.linalg.svd(V, full_matrices=False)
+    B = U[:, s > 1e-10 * s[0]]
+    sym = lambda X: 0.5 * (X + X.T)
+    return Reduced(sym(B.T @ cls.A0 @ B), sym(B.T @ cls.A1 @ B), sym(B.T @ cls.A2 @ B),
+                    B, kmax, n_cut)
+
+
+def _batched_eig(red: Reduced, k: np.ndarray):
+    A = red.a0[None] + k[:, None, None] * red.a1[None] + (k * k)[:, None, None] * red.a2[None]
+    return np.linalg.eigh(A)
+
+
+def _hermite_root(k0, k1, l0, l1, d0, d1, target, n_iter: int = 8):
+    """Root in [k0, k1] of the cubic Hermite interpolant of lambda(k) = target."""
+    h = k1 - k0
+    t = np.clip((target - l0) / np.where(l1 != l0, l1 - l0, 1.0), 0.0, 1.0)
+    for _ in range(n_iter):
+        t2, t3 = t * t, t * t * t
+        p = (2 * t3 - 3 * t2 + 1) * l0 + (t3 - 2 * t2 + t) * h * d0 + (-2 * t3 + 3 * t2) * l1 + (t3 - t2) * h * d1
+        dp = (6 * t2 - 6 * t) * l0 + (3 * t2 - 4 * t + 1) * h * d0 + (-6 * t2 + 6 * t) * l1 + (3 * t2 - 2 * t) * h * d1
+        t = np.clip(t - (p - target) / np.where(dp > 0, dp, np.inf), 0.0, 1.0)
+    return k0 + t * h
+
+
+def _eig_derivatives(red: Reduced, k: np.ndarray, j: np.ndarray):
+    """Eigenpair j at each k with lambda, lambda', lambda'' (perturbation theory) and vector."""
+    lam, vec = _batched_eig(red, k)
+    a = np.arange(len(k))
+    y = vec[a, :, j]
+    Ay = np.einsum("ij,pj->pi", red.a1, y) + 2 * k[:, None] * np.einsum("ij,pj->pi", red.a2, y)
+    P = np.einsum("pij,pi->pj", vec, Ay)             # Y^T A' y
+    lj = lam[a, j]
+    d1 = P[a, j]
+    gap = lj[:, None] - lam
+    gap[a, j] = np.inf
+    with np.errstate(divide="ignore"):
+        d2 = 2 * np.einsum("pi,ij,pj->p", y, red.a2, y) + 2 * np.sum(P * P / gap, axis=1)
+    return lj, d1, d2, y
+
+
+def solve_branches(red: Reduced, omega: np.ndarray, branches: np.ndarray, n_grid: int = 64,
+                    tol: float = 1e-9, max_iter: int = 6):
+    """Wavenumber of branch j at each omega (largest root). Returns k, cg, y (reduced vectors).
+
+    ``omega`` and ``branches`` are paired 1D arrays. A Hermite (value +
+    eigenvector slope) interpolant on a k-grid gives the start; each pair then
+    needs one eigen-solve: a second-order step with lambda'' from perturbation
+    theory, repeated only where the step is not negligible. NaN where the
+    branch does not reach omega.
+    """
+    kg = np.linspace(0.0, red.kmax, n_grid)
+    lam, vec = _batched_eig(red, kg)
+    Ap = red.a1[None] + 2 * kg[:, None, None] * red.a2[None]
+    dl = np.einsum("kij,kia,kaj->kj", vec, Ap, vec)
+    w2 = omega ** 2
+    k = np.full(omega.shape, np.nan)
+    for j in np.unique(branches):
+        sel = np.nonzero(branches == j)[0]
+        L, D = lam[:, j], dl[:, j]
+        cross = (L[None, :-1] <= w2[sel, None]) & (L[None, 1:] > w2[sel, None])
+        has = cross.any(axis=1) & (omega[sel] > 0)
+        n = cross.shape[1] - 1 - np.argmax(cross[:, ::-1], axis=1)    # last crossing: largest root
+        kk = _hermite_root(kg[n], kg[n + 1], L[n], L[n + 1], D[n], D[n + 1], w2[sel])
+        k[sel] = np.where(has, kk, np.nan)
+    idx = np.nonzero(np.isfinite(k))[0]
+    kk, jj, ww = k[idx], branches[idx], w2[idx]
+    cg = np.full(len(idx), np.nan)
+    y = np.zeros((len(idx), red.a0.shape[0]))
+    ok = np.zeros(len(idx), bool)
+    act = np.arange(len(idx))
+    scale = float(np.abs(np.linalg.eigvalsh(red.a0 + red.kmax * red.a1 + red.kmax ** 2 * red.a2)).max())
+    for _ in range(max_iter):
+        if len(act) == 0:
+            break
+        lj, d1, d2, ya = _eig_derivatives(red, kk[act], jj[act])
+        c = lj - ww[act]
+        disc = d1 * d1 - 2.0 * d2 * c
+        with np.errstate(invalid="ignore", divide="ignore"):
+            q = -0.5 * (d1 + np.sqrt(np.maximum(disc, 0.0)))
+            delta = np.where((disc > 0) & (d1 > 0) & (np.abs(d2 * c) < 0.25 * d1 * d1), c / q, -c / d1)
+        delta = np.where(np.isfinite(delta), delta, 0.0)
+        knew = kk[act] + delta
+        y[act] = ya
+        cg[act] = (d1 + d2 * delta) / (2.0 * np.sqrt(ww[act]))
+        noise = 1e-13 * scale
+        small = (np.abs(delta) <= tol * kk[act]) | (np.abs(c) <= noise + 1e-13 * ww[act])
+        resid_ok = np.abs(c) <= 1e-6 * ww[act] + noise
+        kk[act] = np.where(knew > 0, knew, 0.5 * kk[act])
+        ok[act[small & resid_ok]] = True
+        act = act[~(small & resid_ok)]
+    kout = np.full(omega.shape, np.nan); cgo = np.full(omega.shape, np.nan)
+    kout[idx] = np.where(ok, kk, np.nan)
+    cgo[idx] = np.where(ok, cg, np.nan)
+    yout = np.full((len(omega), red.a0.shape[0]), np.nan)
+    yout[idx] = y
+    return kout, cgo, yout
+
+
+# ---------------------------------------------------------------------------
+# Chebyshev representation of the branches of a reduced class model
+@dataclass(frozen=True)
+class Branches:
+    """Chebyshev series in k on [0, kmax] of lambda_j = w_j^2 and of its
+    eigenvector slope lambda_j' = y^T A'(k) y, for branches j < nb; plus any
+    extra eigenvector-derived series (``extra``: name -> (n+1, nb) coeffs)."""
+
+    kmax: float
+    lam: np.ndarray           # (n+1, nb) Chebyshev coefficients
+    dlam: np.ndarray          # (n+1, nb)
+    converged: np.ndarray     # (nb,) bool: tail below tolerance
+    extra: dict
+
+
+def _dct1_coeffs(v: np.ndarray) -> np.ndarray:
+    """Chebyshev coefficients from values at Lobatto points x_i = cos(pi i / n), axis 0."""
+    n = v.shape[0] - 1
+    a = dct(v, type=1, axis=0) / n
+    a[0] /= 2.0
+    a[-1] /= 2.0
+    return a
+
+
+def cheb_branches(red: Reduced, nb: int, n0: int = 32, n_max: int = 256, tol: float = 1e-11,
+                   probes: np.ndarray | None = None, n_vec: int | None = None) -> Branches:
+    """Sample branches 0..nb-1 at nested Chebyshev-Lobatto points until the tail converges.
+
+    ``probes`` (m, r): rows p such that the sign-free products (p . y)(q . y) of
+    every pair are also interpolated (the transient's surface amplitudes).
+    ``n_vec``: if given, lambda is sampled with eigenvalues only (cheaper) and
+    the eigenvector series (products) use a fixed grid of n_vec + 1 nodes; the
+    slope series is then the derivative of the lambda series.
+    """
+    kmax = red.kmax
+    n = n0
+    x = np.cos(np.pi * np.arange(n + 1) / n)
+    ks = kmax * (1.0 - x) / 2.0            # x = 1 -> k = 0
+    vals = _sample(red, ks, nb, None if n_vec else probes, values_only=bool(n_vec))
+    while True:
+        lam_c = _dct1_coeffs(vals[0])
+        scale = np.max(np.abs(lam_c), axis=0)
+        tail = np.max(np.abs(lam_c[-3:]), axis=0) / scale
+        conv = tail < tol
+        if conv.all() or 2 * n > n_max:
+            break
+        # nested refinement: new points at odd indices of the 2n grid
+        x_new = np.cos(np.pi * (2 * np.arange(n) + 1) / (2 * n))
+        new = _sample(red, kmax * (1.0 - x_new) / 2.0, nb, None if n_vec else probes,
+                      values_only=bool(n_vec))
+        merged = []
+        for old, nw in zip(vals, new):
+            m = np.empty((2 * n + 1,) + old.shape[1:])
+            m[0::2] = old
+            m[1::2] = nw
+            merged.append(m)
+        vals = merged
+        n *= 2
+    coeffs = [_dct1_coeffs(v) for v in vals]
+    extra = {}
+    if n_vec:
+        dl = np.zeros_like(coeffs[0])
+        dl[:-1] = npcheb.chebder(coeffs[0]) * (-2.0 / kmax)
+        if probes is not None:
+            xv = np.cos(np.pi * np.arange(n_vec + 1) / n_vec)
+            pv = _sample(red, kmax * (1.0 - xv) / 2.0, nb, probes)
+            extra = {"prod": _dct1_coeffs(pv[2])}
+        return Branches(kmax, coeffs[0], dl, conv, extra)
+    if probes is not None:
+        extra = {"prod": coeffs[2]}
+    return Branches(kmax, coeffs[0], coeffs[1], conv, extra)
+
+
+def _sample(red: Reduced, ks: np.ndarray, nb: int, probes=None, values_only: bool = False):
+    if values_only:
+        A = red.a0[None] + ks[:, None, None] * red.a1[None] + (ks * ks)[:, None, None] * red.a2[None]
+        return [np.linalg.eigvalsh(A)[:, :nb]]
+    lam, vec = _batched_eig(red, ks)
+    y = vec[:, :, :nb]                                       # (K, r, nb)
+    Ay = np.einsum("ij,kjb->kib", red.a1, y) + 2 * ks[:, None, None] * np.einsum("ij,kjb->kib", red.a2, y)
+    dl = np.einsum("kib,kib->kb", y, Ay)
+    out = [lam[:, :nb], dl]
+    if probes is not None:
+        pv = np.einsum("mr,krb->kmb", probes, y)             # (K, m, nb)
+        out.append(np.einsum("kmb,knb->kmnb", pv, pv).reshape(len(ks), -1, nb))
+    return out
+
+
+def _chop(c: np.ndarray, rel: float = 1e-16) -> np.ndarray:
+    """Drop trailing Chebyshev coefficients below rel * max (axis 0)."""
+    a = np.abs(c) if c.ndim == 1 else np.max(np.abs(c), axis=tuple(range(1, c.ndim)))
+    big = np.nonzero(a > rel * a.max())[0]
+    return c[: big[-1] + 1] if big.size else c[:1]
+
+
+def _cheb_vals(c: np.ndarray, k: np.ndarray, kmax: float, deriv: bool = False):
+    """Series c (n+1,) at k (Clenshaw); with deriv also d/dk."""
+    x = np.clip(1.0 - 2.0 * k / kmax, -1.0, 1.0)
+    v = npcheb.chebval(x, c)
+    if not deriv:
+        return v
+    return v, npcheb.chebval(x, npcheb.chebder(c)) * (-2.0 / kmax)
+
+
+def roots_from_series(br: Branches, omega: np.ndarray, j: int, n_dense: int = 256,
+                       n_iter: int = 12):
+    """Largest-root k of lambda_j(k) = omega^2 for each omega, with lambda_j'(k). NaN if none."""
+    kmax = br.kmax
+    c = _chop(br.lam[:, j])
+    dc = npcheb.chebder(c) * (-2.0 / kmax) if len(c) > 1 else np.zeros(1)
+    kd = np.linspace(0.0, kmax, n_dense)
+    xd = 1.0 - 2.0 * kd / kmax
+    L, D = npcheb.chebval(xd, c), npcheb.chebval(xd, dc)
+    w2 = omega ** 2
+    suffix_min = np.minimum.accumulate(L[::-1])[::-1]
+    n = np.searchsorted(suffix_min, w2, side="right") - 1          # last node with L <= w2
+    has = (n >= 0) & (n < n_dense - 1) & (omega > 0)
+    n = np.clip(n, 0, n_dense - 2)
+    lo, hi = kd[n], kd[n + 1]
+    k = _hermite_root(lo, hi, L[n], L[n + 1], D[n], D[n + 1], w2, n_iter=4)
+    act = np.nonzero(has)[0]
+    noise = 1e-14 * float(np.max(np.abs(L)))
+    for _ in range(n_iter):
+        if len(act) == 0:
+            break
+        x = np.clip(1.0 - 2.0 * k[act] / kmax, -1.0, 1.0)
+        f = npcheb.chebval(x, c) - w2[act]
+        d = npcheb.chebval(x, dc)
+        kn = k[act] - f / np.where(d > 0, d, np.inf)
+        # stay in the bracket of the dense grid (the start is already close)
+        kn = np.clip(kn, lo[act], hi[act])
+        done = (np.abs(kn - k[act]) <= 1e-12 * kn) | (np.abs(f) <= noise)
+        k[act] = kn
+        act = act[~done]
+    dl = _cheb_vals(_chop(br.dlam[:, j]), k, kmax)
+    k = np.where(has, k, np.nan)
+    return k, np.where(has, dl, np.nan)
+
+
+def dense_table(br: Branches, j: int, n: int = 4096):
+    """Branch j on n+1 Chebyshev-Lobatto wavenumbers (ascending) via one DCT per series.
+
+    Returns (k, lam, dlam, extra) where extra has the surface products if present.
+    """
+    def vals(c):
+        c = c[:n + 1]
+        b = np.zeros((n + 1,) + c.shape[1:])
+        b[:c.shape[0]] = c
+        b[1:n] *= 0.5
+        return dct(b, type=1, axis=0)
+
+    x = np.cos(np.pi * np.arange(n + 1) / n)
+    k = br.kmax * (1.0 - x) / 2.0
+    extra = {name: vals(c[..., j]) for name, c in br.extra.items()}
+    return k, vals(br.lam[:, j]), vals(br.dlam[:, j]), extra
+
+
+def invert_table(k, lam, dlam, omega):
+    """Largest root of lam(k) = omega^2 from a dense table (cubic Hermite in each interval).
+
+    Returns (k_root, interval index i, fraction t) with NaN where there is no root.
+    """
+    suffix_min = np.minimum.accumulate(lam[::-1])[::-1]
+    w2 = omega ** 2
+    i = np.searchsorted(suffix_min, w2, side="right") - 1       # last i with lam_i <= w2
+    has = (i >= 0) & (i < len(k) - 1) & (omega > 0)
+    i = np.clip(i, 0, len(k) - 2)
+    kr = _hermite_root(k[i], k[i + 1], lam[i], lam[i + 1], dlam[i], dlam[i + 1], w2, n_iter=3)
+    t = (kr - k[i]) / (k[i + 1] - k[i])
+    return np.where(has, kr, np.nan), i, t
+
+
+
+def solve_full(cls: DofClass, omega: float, j: int, k: float, tol: float = 1e-12):
+    """Reference: Newton on branch j of the full (unreduced) class model from start k.
+
+    Slow; used by tests and benchmarks to check the reduced solver.
+    """
+    for _ in range(50):
+        lam, vec = _eig_at(cls, k, j + 1)
+        psi = vec[:, j]
+        d = psi @ (cls.A1 + 2 * k * cls.A2) @ psi
+        step = (lam[j] - omega ** 2) / d
+        k -= step
+        if abs(step) < tol * k:
+            break
+    lam, vec = _eig_at(cls, k, j + 1)
+    psi = vec[:, j]
+    return k, psi @ (cls.A1 + 2 * k * cls.A2) @ psi / (2 * omega)

@@ -1,0 +1,136 @@
+"""Dispersion curves of a laminate: every guided mode, or one mode's group velocity.
+
+Units: SI (Hz, rad/m, m/s); angles in degrees. Model: :mod:`engine.safe.model`;
+labels: :mod:`engine.safe.labels`; numerics: :mod:`engine.safe.branches`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..laminate import Laminate
+from .branches import cheb_branches, reduce_class, roots_from_series, solve_branches
+from .labels import FUND_ORDER, branch_table, fundamental_rows
+from .model import TWO_PI, SafeError, SafeModel, safe_model
+
+__all__ = ["ModeCurve", "Dispersion", "dispersion", "dispersion_from_model", "group_velocity"]
+
+
+@dataclass(frozen=True)
+class ModeCurve:
+    """One guided mode on a frequency grid; NaN where the mode does not exist."""
+
+    label: str
+    frequency_hz: np.ndarray
+    wavenumber_rad_m: np.ndarray
+    phase_velocity_m_s: np.ndarray
+    group_velocity_m_s: np.ndarray
+    cutoff_hz: float = 0.0
+
+
+@dataclass(frozen=True)
+class Dispersion:
+    """Dispersion curves of a laminate along one direction."""
+
+    frequency_hz: np.ndarray
+    direction_deg: float
+    modes: tuple[ModeCurve, ...]
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return tuple(m.label for m in self.modes)
+
+    def mode(self, label: str) -> ModeCurve:
+        for m in self.modes:
+            if m.label == label:
+                return m
+        raise KeyError(f"mode {label!r} not found; available: {', '.join(self.labels)}")
+
+
+
+def _check_freq(frequency_hz) -> np.ndarray:
+    f = np.atleast_1d(np.asarray(frequency_hz, dtype=float))
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)):
+        raise SafeError(f"frequency grid: expected a non-empty 1D array of finite values in Hz, got shape {f.shape}")
+    if not np.any(f > 0):
+        raise SafeError("frequency grid: expected at least one positive frequency in Hz")
+    return f
+
+
+def _model_for(laminate, fmax, direction_deg, order, elements_per_ply) -> SafeModel:
+    return safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
+                      fmax_hz=fmax)
+
+
+def dispersion_from_model(model: SafeModel, frequency_hz, *, labels: tuple[str, ...] | None = None
+                          ) -> Dispersion:
+    """Dispersion curves of an assembled model on any frequency grid (Hz)."""
+    f = _check_freq(frequency_hz)
+    w = TWO_PI * f
+    wmax = float(np.max(w))
+    if labels is not None and set(labels) <= set(FUND_ORDER):
+        rows = [r for r in fundamental_rows(model) if r["label"] in labels]
+    else:
+        rows = branch_table(model, wmax)
+    if labels is not None:
+        missing = set(labels) - {r["label"] for r in rows}
+        if missing:
+            raise SafeError(f"mode(s) {sorted(missing)} do not exist below {wmax / TWO_PI:g} Hz; "
+                            f"expected one of {[r['label'] for r in rows]}")
+        rows = [r for r in rows if r["label"] in labels]
+    modes = []
+    by_class: dict[int, list] = {}
+    for r in rows:
+        by_class.setdefault(r["ci"], []).append(r)
+    results = {}
+    for ci, rs in by_class.items():
+        nb = max(r["j"] for r in rs) + 1
+        red = reduce_class(model.classes[ci], wmax, n_branches=nb if labels is not None else None)
+        if red is None:
+            continue
+        br = cheb_branches(red, nb)
+        for r in rs:
+            j = r["j"]
+            if br.converged[j]:
+                k, dl = roots_from_series(br, w, j)
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    cg = dl / (2.0 * w)
+            else:   # series not converged (sharp veering): one eigen-solve per frequency
+                k, cg, _ = solve_branches(red, w, np.full(len(w), j))
+            results[r["label"]] = (k, cg, r["cutoff"])
+    for r in rows:
+        if r["label"] not in results:
+            continue
+        k, cg, cut = results[r["label"]]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cp = np.where(k > 0, w / k, np.nan)
+        if not np.any(np.isfinite(k)) and cut >= np.max(f):
+            continue
+        modes.append(ModeCurve(r["label"], f.copy(), k, cp, cg, float(cut)))
+    return Dispersion(f.copy(), float(model.direction_deg), tuple(modes))
+
+
+def dispersion(laminate: Laminate, frequency_hz, direction_deg: float = 0.0, *,
+               order: int | None = None, elements_per_ply: int | None = None) -> Dispersion:
+    """Every guided mode below max(frequency_hz) on the given grid (Hz).
+
+    Phase velocity w/k and group velocity from the eigenvector; NaN where a
+    mode does not exist. Labels and tracking: see the module docstring.
+    """
+    f = _check_freq(frequency_hz)
+    model = _model_for(laminate, float(np.max(f)), direction_deg, order, elements_per_ply)
+    return dispersion_from_model(model, f)
+
+
+def group_velocity(laminate: Laminate, frequency_hz, mode: str = "A0",
+                   direction_deg: float = 0.0, *, order: int | None = None,
+                   elements_per_ply: int | None = None) -> np.ndarray:
+    """Group velocity (m/s) of one mode on a frequency grid (fast path).
+
+    Only the class of the requested mode is solved. Smooth in the elastic
+    constants: fixed discretisation for a given fmax, Newton-converged roots.
+    """
+    f = _check_freq(frequency_hz)
+    model = _model_for(laminate, float(np.max(f)), direction_deg, order, elements_per_ply)
+    return dispersion_from_model(model, f, labels=(mode,)).mode(mode).group_velocity_m_s

@@ -1,0 +1,35 @@
+"""High-frequency analysis: complex Morlet CWT, arrival times, group velocity.
+
+Paper section 3 (Figs. 5-9): the scalogram |W(f, t)| of a guided-wave record
+peaks, at each frequency, at the arrival time of the wave packet of that
+frequency; distance / delay is the group velocity. Units: s, Hz, m, m/s.
+
+Modules (each readable alone):
+
+* :mod:`.wavelet` -- the complex Morlet ``Wavelet`` (B, C; ``from_name('cmor2-1')``,
+  ``.name``, time and frequency std) and the paper's two choices;
+* :mod:`.bank` -- the transform as an analytic Morlet filter bank in the Fourier
+  domain (the measured reason for keeping it is in its docstring), its decimated
+  form and the white-noise level of |W|;
+* :mod:`.arrivals` -- arrival time per frequency from |W|, the dispersion-bias
+  correction, time gates;
+* :mod:`.velocity` -- group velocity from arrivals, independent points.
+
+The whole measurement of a wave run (band, gates, wavelet choice, S0 separation,
+shots, independent points) is :mod:`engine.waves_pipeline`.
+
+Public API (re-exported here): ``WaveError``, ``Wavelet``, ``PAPER_ALUMINIUM``,
+``PAPER_CFRP``, ``cwt``, ``cwt_decimated``, ``white_noise_level``, ``Arrivals``,
+``arrival_times``, ``correct_dispersion_bias``, ``velocity_gate``, ``expected_gate``,
+``GroupVelocity``, ``group_velocity``, ``independent_points``.
+"""
+from .arrivals import Arrivals, arrival_times, correct_dispersion_bias, expected_gate, velocity_gate
+from .bank import cwt, cwt_decimated, white_noise_level
+from .velocity import GroupVelocity, group_velocity, independent_points
+from .wavelet import PAPER_ALUMINIUM, PAPER_CFRP, Wavelet, WaveError
+
+__all__ = [
+    "WaveError", "Wavelet", "PAPER_ALUMINIUM", "PAPER_CFRP", "cwt", "cwt_decimated", "white_noise_level",
+    "Arrivals", "arrival_times", "velocity_gate", "expected_gate", "GroupVelocity",
+    "group_velocity", "correct_dispersion_bias", "independent_points",
+]
