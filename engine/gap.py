@@ -3,7 +3,7 @@
 Procedure (``diagnose``), on features whitened by their sigmas (plus a small
 model-discretisation allowance, ``GapOptions.model_rel_sigma``):
 
-1. Best fit of the constants (``engine.identify.estimate``, log-parameters,
+1. Best fit of the constants (``engine.fit.estimate``, log-parameters,
    Gaussian prior ``prior_rel_std`` about the nominal values); chi^2 of the
    whitened residuals against the chi^2 law on the degrees of freedom left
    (n minus the trace of the hat matrix): a gap is declared when the p-value
@@ -39,7 +39,7 @@ import numpy as np
 from scipy import stats
 
 from .gap_forward import EFFECTS, ForwardModel, GapError, GapProblem
-from .identify import DataBlock, Prior, estimate, whitened_jacobian
+from .fit import DataBlock, Prior, estimate, whitened_jacobian
 
 __all__ = ["GapOptions", "diagnose", "gap_test", "feature_labels", "GapError"]
 

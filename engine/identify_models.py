@@ -1,4 +1,4 @@
-"""Data blocks for :mod:`engine.identify` built on the forward models.
+"""Data blocks for :mod:`engine.fit` built on the forward models.
 
 * :func:`modal_block` -- natural frequencies from ``engine.plate_fe`` with
   analytic sensitivities (d omega^2/dp -> d f/dp = (d omega^2/dp) / (8 pi^2 f)),
@@ -17,7 +17,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .identify import DataBlock, IdentificationError
+from .fit import DataBlock, IdentificationError
 from .laminate import Laminate
 
 __all__ = ["mac", "pair_by_mac", "ModalForward", "modal_block", "wave_block"]

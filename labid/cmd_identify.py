@@ -60,7 +60,7 @@ def _run(args: argparse.Namespace) -> dict:
     if args.mcmc:
         if args.mcmc < 10:
             raise UserError(f"value {args.mcmc}: expected at least 10 steps", key="--mcmc")
-        from engine.identify_mcmc import sample_posterior  # noqa: PLC0415
+        from engine.fit import sample_posterior  # noqa: PLC0415
         prior = args.prior if args.method == "lm" else None
         out["posterior"] = sample_posterior(problem.blocks, est, prior=prior, n_steps=args.mcmc,
                                             seed=args.seed).to_dict()

@@ -4,7 +4,7 @@
 builds the data blocks it holds (natural frequencies -> plate FE, group
 velocities -> SAFE), chooses the parameters to identify and their start
 (the specimen's nominal constants unless given), and runs one of the
-estimators of :mod:`engine.identify`. ``multi_start`` repeats it from many
+estimators of :mod:`engine.fit`. ``multi_start`` repeats it from many
 initial guesses through any ``concurrent.futures`` executor (the paper's
 Fig. 3) and ``plot_multi_start`` draws the scatter plots.
 
@@ -21,8 +21,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from engine.identify import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update,
-                             estimate, nelder_mead_fit)
+from engine.fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
+                        nelder_mead_fit)
 from engine.identify_models import modal_block, wave_block
 from engine.laminate import PhysicsError
 
@@ -327,9 +327,9 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
         raise UserError(str(e), file=problem.source) from None
     scale_notes: list[str] = []
     if scale_sigmas and method == "lm":
-        est, scale_notes = _birge_refit(problem, est, names, st, prior, max_iter)
+        est, scale_notes = checks.birge_refit(problem.blocks, est, names, st, prior, max_iter)
     if consistency and method == "lm" and len(problem.kinds) > 1:
-        scale_notes += _consistency(problem, est, names, prior, max_iter)
+        scale_notes += checks.consistency(problem.blocks, est, names, prior, max_iter)
     warnings = list(est.warnings) + list(problem.notes) + scale_notes
     chi2 = sum(r["chi2"] for r in est.residuals.values())
     n = sum(r["n"] for r in est.residuals.values())
@@ -339,70 +339,6 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     if problem.modal_forward is not None:
         warnings += problem.modal_forward.warnings
     return replace(est, warnings=tuple(warnings))
-
-
-def _birge_refit(problem: Problem, est: Estimate, names, start, prior, max_iter
-                 ) -> tuple[Estimate, list[str]]:
-    scales: dict[str, float] = {}
-    for kind in dict.fromkeys(b.kind for b in problem.blocks):
-        chi2 = sum(r["chi2"] for r in est.residuals.values() if r["kind"] == kind)
-        n = sum(r["n"] for r in est.residuals.values() if r["kind"] == kind)
-        ratio = chi2 / n
-        if 1.0 + 3.0 * math.sqrt(2.0 / n) < ratio < 10.0:
-            scales[kind] = math.sqrt(ratio)
-    if not scales:
-        return est, []
-    blocks = [replace(b, sigma=b.sigma * scales.get(b.kind, 1.0)) for b in problem.blocks]
-    if isinstance(prior, (int, float)):   # keep the prior centred on the original start
-        prior = Prior(mean=dict(start), rel_std={n: float(prior) for n in names})
-    est2 = estimate(blocks, names, est.params, prior=prior, max_iter=max_iter)
-    est2 = replace(est2, start=dict(start), iterations=est.iterations + est2.iterations,
-                   history=est.history + est2.history, sigma_scale=scales,
-                   seconds=est.seconds + est2.seconds)
-    notes = [f"{k}: chi^2 per point {s * s:.3g} > 1: sigmas scaled by {s:.3g} (Birge ratio) and refitted"
-             for k, s in scales.items()]
-    return est2, notes
-
-
-def _consistency(problem: Problem, est: Estimate, names, prior, max_iter) -> list[str]:
-    scale = est.sigma_scale or {}
-    blocks = [replace(b, sigma=b.sigma * scale.get(b.kind, 1.0)) for b in problem.blocks]
-    chi2_all = sum(r["chi2"] for r in est.residuals.values())
-    chi2_sep, sep = 0.0, {}
-    for kind in dict.fromkeys(b.kind for b in blocks):
-        bk = [b for b in blocks if b.kind == kind]
-        try:
-            # a partial minimisation only understates the excess (conservative)
-            e = estimate(bk, names, est.params, prior=prior, max_iter=min(max_iter, 20))
-        except (IdentificationError, ValueError):
-            return []
-        chi2_sep += sum(r["chi2"] for r in e.residuals.values())
-        sep[kind] = e
-    # degrees of freedom of the excess: the combinations every data set sees
-    # (whitened singular values above 1, i.e. constrained better than a factor e)
-    k = min(sum(1 for sv in est.identifiability["data_sets"][kind]["singular_values"] if sv > 1.0)
-            for kind in sep)
-    excess = chi2_all - chi2_sep
-    if k == 0:
-        return []
-    from scipy.stats import chi2 as chi2_dist  # noqa: PLC0415
-    pval = float(chi2_dist.sf(excess, k))
-    if pval >= 0.05:
-        return []
-    # which parameters the data sets pull apart: difference in units of the combined std
-    # where: separate estimates away from the combined one, in their own marginal std
-    # (only where that std is meaningful, < 50 %)
-    pulls = []
-    for j, n in enumerate(names):
-        d = [abs(np.log(e.values[j] / est.values[j])) / e.rel_std[n] for e in sep.values()
-             if e.rel_std[n] < 0.5]
-        if d:
-            pulls.append((max(d), n))
-    pulls.sort(reverse=True)
-    where = ", ".join(f"{n} ({d:.1f} std of one data set alone)" for d, n in pulls[:3] if d > 1
-                      ) or "no single parameter"
-    return [f"data sets disagree: combined chi^2 exceeds the separate fits by {excess:.3g} "
-            f"(~{k} expected, p = {pval:.2g}); pulled apart: {where}; the combined std is optimistic"]
 
 
 def identify(features: str | Path | Mapping, names: Sequence[str] | None = None,

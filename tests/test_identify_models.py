@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from engine.identify import estimate
+from engine.fit import estimate
 from engine.identify_models import mac, modal_block, pair_by_mac
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.identify import DataBlock, estimate, linearised_block, nelder_mead_fit
+from engine.fit import DataBlock, estimate, linearised_block, nelder_mead_fit
 from engine.identify_models import wave_block
 from engine.plate_fe import PlateModel
 from engine.safe import group_velocity
