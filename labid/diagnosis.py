@@ -1,7 +1,7 @@
 """Gap diagnosis workflow: features JSON (CONTRACT section 2) + nominal rig -> diagnosis.
 
 ``problem_from_features(doc, base_dir)`` turns the parsed features into an
-``engine.gap_forward.GapProblem`` (UserError naming the key on bad input);
+``engine.features.Features`` (UserError naming the key on bad input);
 ``run_diagnosis(doc, base_dir)`` runs ``engine.gap.diagnose``; ``plot_gap``
 draws where the gap lies (whitened residual of every feature before/after,
 and the chi^2 share of each group).
@@ -57,16 +57,16 @@ MAX_MODES = 12
 
 def problem_from_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
                           max_modes: int = MAX_MODES):
-    """GapProblem from a features document (see ``problem_and_notes``)."""
+    """Features from a features document (see ``problem_and_notes``)."""
     return problem_and_notes(doc, base_dir, src, max_modes)[0]
 
 
 def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
                       max_modes: int = MAX_MODES):
-    """(GapProblem, notes) from a features document (validated by ``labid.features``; specimen
+    """(Features, notes) from a features document (validated by ``labid.features``; specimen
     path relative to ``base_dir``, a built-in name or inline). Velocities that are
     null/NaN are dropped; absent sigmas default as in ``labid identify``."""
-    from engine.gap_forward import GapProblem, ModalData, RigLayout, WaveData
+    from engine.features import Features, ModalData, RigLayout, WaveData
 
     from .features import specimen_of, validate_features
     from .identification import DEFAULT_MODAL_SIGMA_REL, DEFAULT_WAVE_SIGMA_REL
@@ -121,24 +121,25 @@ def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<fea
         if not (-1e-9 <= x <= specimen.length + 1e-9 and -1e-9 <= y <= specimen.width + 1e-9):
             raise UserError(f"point ({x}, {y}) lies outside the {specimen.length} x {specimen.width} m plate",
                             file=src, key=k)
-    return (GapProblem(specimen.laminate, specimen.length, specimen.width, layout, modal, tuple(waves)),
+    return (Features(specimen.laminate, specimen.length, specimen.width, layout, modal, tuple(waves)),
             notes)
 
 
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
                   options=None) -> dict:
     """Diagnosis dict (CONTRACT section 3 keys first) of parsed features."""
+    from engine.forward import EffectError
     from engine.gap import GapError, diagnose
     from engine.laminate import PhysicsError
 
     problem, notes = problem_and_notes(doc, base_dir, src)
     try:
-        res = diagnose(problem, options)
+        res = diagnose(problem, options).to_dict()
         res["notes"] = notes
         return res
     except PhysicsError as e:
         raise UserError(f"unphysical nominal constants: {e}", file=src, key="specimen") from None
-    except GapError as e:
+    except (GapError, EffectError) as e:
         raise UserError(f"cannot diagnose: {e}", file=src) from None
 
 

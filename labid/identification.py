@@ -23,7 +23,7 @@ import numpy as np
 
 from engine.fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
                         nelder_mead_fit)
-from engine.identify_models import modal_block, wave_block
+from engine.forward import modal_block, wave_block
 from engine.laminate import PhysicsError
 
 from . import threads

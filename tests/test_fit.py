@@ -16,7 +16,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from engine.fit import Coords, Problem, check_start, estimate
-from engine.identify_models import wave_block
+from engine.forward import wave_block
 from engine.safe import group_velocity
 from labid.specimen import load_specimen
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from engine.fit import DataBlock, estimate, linearised_block, nelder_mead_fit
-from engine.identify_models import wave_block
+from engine.forward import wave_block
 from engine.plate_fe import PlateModel
 from engine.safe import group_velocity
 from labid.identification import problem_from_features, run, synthetic_features
