@@ -33,6 +33,7 @@ from engine.forward import EFFECTS, ForwardModel
 from engine.laminate import Laminate, Ply
 from engine.plate_fe import Mesh, PlateModel
 from engine.safe import default_discretisation
+from labid.features import features_document
 from labid.specimen import specimen_from_dict
 
 LIBRARY = tuple(EFFECTS)
@@ -151,23 +152,11 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     shapes = shapes + 0.02 * rng.standard_normal(shapes.shape)
     sig = np.concatenate([MODAL_REL_SIGMA * y[:N_MODES], WAVE_REL_SIGMA * y[N_MODES:]])
     obs = y + sig * rng.standard_normal(y.shape)
-    feats = {
-        "specimen": copy.deepcopy(table),
-        "modal": {"frequencies_hz": obs[:N_MODES].tolist(), "sigma_hz": sig[:N_MODES].tolist(),
-                  "mode_shapes": {"points": pts.tolist(), "values": shapes.tolist()}},
-        "waves": [],
-        "rig": {"temperature_c": 23.0,
-                "accelerometers": [{"x": x, "y": y_, "mass_kg": ACCEL_MASS_KG} for x, y_ in ACCELEROMETERS],
-                "supports": [{"x": x, "y": y_} for x, y_ in SUPPORTS],
-                "wave_path_m": WAVE_PATH_M, "sensor_length_m": SENSOR_LENGTH_M},
-    }
-    i = N_MODES
-    for w in waves:
-        n = len(w.frequency_hz)
-        feats["waves"].append({"mode": w.mode, "direction_deg": w.direction_deg,
-                               "frequency_hz": np.asarray(w.frequency_hz).tolist(),
-                               "group_velocity_m_s": obs[i:i + n].tolist(),
-                               "sigma_m_s": sig[i:i + n].tolist()})
-        i += n
+    n_w = [len(w.frequency_hz) for w in waves]
+    ends = N_MODES + np.cumsum([0] + n_w)
+    measured = Features(lam, length, width, rig, ModalData(obs[:N_MODES], sig[:N_MODES], pts, shapes),
+                        tuple(WaveData(w.mode, w.direction_deg, w.frequency_hz, obs[a:b], sig[a:b])
+                              for w, a, b in zip(waves, ends[:-1], ends[1:])))
+    feats = features_document(measured, copy.deepcopy(table))
     unit = EFFECTS[kind].unit if kind in EFFECTS else ("deg" if kind == "ply_angle" else "1")
     return BlindCase(int(seed), kind, mag, unit, feats, truth, bool(outside), y)

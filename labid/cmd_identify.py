@@ -14,7 +14,7 @@ import sys
 from .cli import add_json_option
 from .errors import UserError
 from .identification import (METHODS, load_problem, multi_start, load_features,
-                             parse_assignments, plot_multi_start, random_starts, run, _start)
+                             parse_assignments, plot_multi_start, random_starts, run, start_values)
 
 
 def register(sub) -> None:
@@ -66,7 +66,7 @@ def _run(args: argparse.Namespace) -> dict:
                                             seed=args.seed).to_dict()
     out["specimen"] = problem.specimen.name
     if args.starts:
-        st0 = _start(problem, est.names, start)
+        st0 = start_values(problem, est.names, start)
         starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
         doc = load_features(args.features)
         executor = None
