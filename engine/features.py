@@ -75,7 +75,7 @@ class Features:
 
     ``laminate`` and ``length`` x ``width`` (m) describe the nominal plate;
     ``material`` names the laminate material the constants belong to (None:
-    the first). ``specimen`` is the specimen's name, for reports.
+    the first). ``specimen_name`` names the specimen, for reports.
     """
 
     laminate: Laminate
@@ -85,7 +85,7 @@ class Features:
     modal: ModalData | None = None
     waves: tuple[WaveData, ...] = ()
     material: str | None = None
-    specimen: str = ""
+    specimen_name: str = ""
 
     @property
     def material_obj(self) -> Material:

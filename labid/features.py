@@ -352,7 +352,8 @@ def parse_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<featur
         waves.append(WaveData(w["mode"], float(w["direction_deg"]), np.asarray(w["frequency_hz"], dtype=float),
                               cg, sig))
     rig = _rig_layout(doc.get("rig") or {}, src)
-    feats = Features(spec.laminate, spec.length, spec.width, rig, modal, tuple(waves), specimen=spec.name)
+    feats = Features(spec.laminate, spec.length, spec.width, rig, modal, tuple(waves),
+                     specimen_name=spec.name)
     return ParsedFeatures(feats, spec, tuple(notes))
 
 

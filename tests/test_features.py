@@ -131,7 +131,7 @@ def test_parse_gives_the_engine_form_and_document_gives_it_back():
     doc["waves"][0]["group_velocity_m_s"] = [812.0, None]
     parsed = F.parse_features(doc)
     ft = parsed.features
-    assert parsed.specimen.name == ft.specimen and ft.length == parsed.specimen.length
+    assert parsed.specimen.name == ft.specimen_name and ft.length == parsed.specimen.length
     assert ft.modal.frequency_hz.tolist() == [37.3, 85.8, 110.9]
     assert ft.modal.shapes.tolist() == [[1.0, -0.5], [0.2, 1.0], [1.0, 1.0]]
     w = ft.waves[0]
