@@ -14,7 +14,6 @@ from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
 
 from .estimators import estimate
 from .problem import DataBlock, IdentificationError, Prior
@@ -77,6 +76,9 @@ def consistency(blocks: Sequence[DataBlock], est: Estimate, names: Sequence[str]
     excess = chi2_all - chi2_sep
     if k == 0:
         return []
+    # scipy.stats costs ~0.4 s CPU to import on top of scipy.optimize (0.82 s against 0.43 s
+    # measured alone); only this test of a combined fit needs it: imported here, not at top
+    from scipy.stats import chi2 as chi2_dist  # noqa: PLC0415
     pval = float(chi2_dist.sf(excess, k))
     if pval >= 0.05:
         return []
