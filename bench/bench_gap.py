@@ -1,4 +1,4 @@
-"""Blind validation of the gap diagnoser (engine.gap) on generated cases (mock_hw.blind).
+"""Blind validation of the gap diagnoser (engine.gap) on generated cases (bench/blind.py).
 
 Run:  OMP_NUM_THREADS=1 .venv/bin/python bench/bench_gap.py [--quick] [--out bench/gap_cases.jsonl]
 
@@ -23,8 +23,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from labid.diagnosis import run_diagnosis  # noqa: E402
-from mock_hw.blind import KINDS, LIBRARY, OUT_OF_LIBRARY, RANGES, draw_case  # noqa: E402
+from bench.blind import KINDS, LIBRARY, OUT_OF_LIBRARY, RANGES, draw_case  # noqa: E402
+from engine.forward import ForwardModel  # noqa: E402
+from engine.gap import GapFit, GapOptions  # noqa: E402
+from labid.diagnosis import problem_from_features, run_diagnosis  # noqa: E402
 
 #: (kind, count, outside generator); run round-robin over the kinds (see _plan)
 PLAN = ([("clean", 8, False)] + [(k, 5, False) for k in LIBRARY] + [(k, 4, False) for k in OUT_OF_LIBRARY]
@@ -46,13 +48,10 @@ def oracle_dchi2(case) -> float:
     """Noise-free chi^2 the true effect leaves once the constants absorb what they can
     (diagnoser's whitening, true constants, linearised): below ~30 the effect cannot
     be seen reliably against the chi^2 threshold."""
-    from engine.gap import GapOptions, _Fit
-    from engine.gap_forward import ForwardModel
-    from labid.diagnosis import problem_from_features
     if case.kind not in LIBRARY:
         return float("nan")
     pr = problem_from_features(case.features)
-    F = _Fit(pr, ForwardModel(pr), GapOptions())
+    F = GapFit(pr, ForwardModel(pr), GapOptions().model_rel_sigma)
     p = case.truth_constants
     ref = {"sensor_aperture": pr.rig.sensor_length_m} if case.kind == "sensor_aperture" else {}
     s = F.residual(p, {case.kind: case.magnitude}) - F.residual(p, ref)

@@ -15,7 +15,7 @@ from . import services
 from .cmdutil import add_json_option
 from .errors import UserError
 from .identification import (METHODS, load_problem, multi_start, load_features,
-                             parse_assignments, plot_multi_start, random_starts, run, _start)
+                             parse_assignments, plot_multi_start, random_starts, run, start_values)
 
 
 def register(sub) -> None:
@@ -61,13 +61,13 @@ def _run(args: argparse.Namespace) -> dict:
     if args.mcmc:
         if args.mcmc < 10:
             raise UserError(f"value {args.mcmc}: expected at least 10 steps", key="--mcmc")
-        from engine.identify_mcmc import sample_posterior  # noqa: PLC0415
+        from engine.fit import sample_posterior  # noqa: PLC0415
         prior = args.prior if args.method == "lm" else None
         out["posterior"] = sample_posterior(problem.blocks, est, prior=prior, n_steps=args.mcmc,
                                             seed=args.seed).to_dict()
     out["specimen"] = problem.specimen.name
     if args.starts:
-        st0 = _start(problem, est.names, start)
+        st0 = start_values(problem, est.names, start)
         starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
         doc = load_features(args.features)
         executor = None

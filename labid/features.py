@@ -1,4 +1,4 @@
-"""The measured-features file (JSON, CONTRACT section 2): read, validate, write.
+"""The measured-features file (JSON, CONTRACT section 2): read, validate, write, parse.
 
 The bridge between processing (``labid analyze``) and identification /
 diagnosis. Any of ``modal``, ``waves``, ``rig`` may be absent. ``specimen`` is
@@ -6,6 +6,11 @@ a path relative to the JSON file (or a built-in name) or the specimen table
 inline. JSON has no NaN: a velocity that could not be measured is ``null``
 (read back as NaN). Every mistake raises ``UserError`` naming the file, the
 key (``waves[0].frequency_hz[3]``), the value and what was expected.
+
+:func:`parse_features` is the one conversion of a document into the engine's
+in-memory form, ``engine.features.Features`` (with the specimen it names and
+the notes on assumed sigmas); :func:`features_document` the way back.
+Identification and diagnosis both start from it.
 """
 from __future__ import annotations
 
@@ -13,16 +18,25 @@ import json
 import math
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
+
+import numpy as np
+
+from engine.features import Features, ModalData, RigLayout, WaveData
 
 from .errors import UserError
 from .specimen import BUILTIN, Specimen, load_specimen, specimen_from_dict
 
 __all__ = ["validate_features", "read_features", "write_features", "features_text",
-           "specimen_of", "MODE_LABEL"]
+           "specimen_of", "MODE_LABEL", "parse_features", "ParsedFeatures", "features_document",
+           "DEFAULT_MODAL_SIGMA_REL", "DEFAULT_WAVE_SIGMA_REL"]
 
 MODE_LABEL = re.compile(r"^(A|S|SH)\d+$")
+#: sigmas assumed when a features file gives none (relative to the value)
+DEFAULT_MODAL_SIGMA_REL = 1e-3
+DEFAULT_WAVE_SIGMA_REL = 1e-2
 
 
 def _is_num(v: Any) -> bool:
@@ -243,3 +257,135 @@ def write_features(path: str | Path, doc: Mapping, *, specimen_path: str | Path 
     except OSError as e:
         raise UserError(f"cannot write: {e.strerror}", file=str(p)) from None
     return json.loads(text)
+
+
+# ---------------------------------------------------------------------------
+# document <-> engine.features.Features
+# ---------------------------------------------------------------------------
+def _nan_to_null(v: Any) -> Any:
+    """JSON view of a (possibly already validated) document: NaN -> None."""
+    if isinstance(v, Mapping):
+        return {k: _nan_to_null(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_nan_to_null(x) for x in v]
+    if isinstance(v, np.ndarray):
+        return _nan_to_null(v.tolist())
+    if isinstance(v, float) and math.isnan(v):
+        return None
+    return v
+
+
+def _opt_number(doc: Mapping, key: str, where: str, src: str, default=None) -> float | None:
+    v = doc.get(key, default)
+    if v is None:
+        return None
+    try:
+        v = float(v)
+    except (TypeError, ValueError):
+        raise UserError(f"value {v!r}: expected a number", file=src, key=f"{where}{key}") from None
+    if not math.isfinite(v):
+        raise UserError(f"value {v!r}: expected a finite number", file=src, key=f"{where}{key}")
+    return v
+
+
+def _sigma(values: np.ndarray, given: Any, default_rel: float, key: str, notes: list[str]) -> np.ndarray:
+    if given is None:
+        notes.append(f"{key} absent: assuming {default_rel:.1%} of the values")
+        return default_rel * values
+    return np.asarray(given, dtype=float)
+
+
+def _rig_layout(rig: Mapping, src: str) -> RigLayout:
+    wl_ = rig.get("wavelet") or {}
+    if not isinstance(wl_, Mapping):
+        raise UserError(f"value {wl_!r}: expected an object {{bandwidth, center}}", file=src,
+                        key="rig.wavelet")
+    acc = rig.get("accelerometers") or []
+    return RigLayout(
+        tuple((a["x"], a["y"]) for a in acc),
+        tuple((a["x"], a["y"]) for a in rig.get("supports") or []),
+        rig.get("wave_path_m"),
+        float(rig.get("sensor_length_m") or 0.0),
+        rig.get("temperature_c"),
+        _opt_number(wl_, "bandwidth", "rig.wavelet.", src, 2.0),
+        _opt_number(wl_, "center", "rig.wavelet.", src, 5.0),
+        tuple(float(a.get("mass_kg") or 0.0) for a in acc))
+
+
+@dataclass(frozen=True)
+class ParsedFeatures:
+    """A features document in the engine's form, the specimen it names, and notes
+    (sigmas assumed where the document gives none)."""
+
+    features: Features
+    specimen: Specimen
+    notes: tuple[str, ...] = ()
+
+
+def parse_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>", *,
+                   specimen: Specimen | None = None) -> ParsedFeatures:
+    """Validate a features document and convert it into ``engine.features.Features``.
+
+    ``specimen`` replaces the one the document names (path relative to
+    ``base_dir``, built-in name or inline table). NaN in an in-memory document
+    counts as null. Absent sigmas become DEFAULT_MODAL_SIGMA_REL /
+    DEFAULT_WAVE_SIGMA_REL of the values (with a note); unmeasured velocities
+    (null) stay NaN: the consumer decides what to drop.
+    """
+    doc = validate_features(_nan_to_null(doc), src)
+    spec = specimen if specimen is not None else specimen_of(doc, base_dir, src)
+    notes: list[str] = []
+    modal = None
+    m = doc.get("modal")
+    if m is not None:
+        f = np.asarray(m["frequencies_hz"], dtype=float)
+        sig = _sigma(f, m.get("sigma_hz"), DEFAULT_MODAL_SIGMA_REL, "modal.sigma_hz", notes)
+        pts = vals = None
+        if m.get("mode_shapes") is not None:
+            pts = np.asarray(m["mode_shapes"]["points"], float)
+            vals = np.asarray(m["mode_shapes"]["values"], float)
+        modal = ModalData(f, sig, pts, vals)
+    waves = []
+    for i, w in enumerate(doc.get("waves") or []):
+        cg = np.asarray(w["group_velocity_m_s"], dtype=float)
+        sig = _sigma(cg, w.get("sigma_m_s"), DEFAULT_WAVE_SIGMA_REL, f"waves[{i}].sigma_m_s", notes)
+        waves.append(WaveData(w["mode"], float(w["direction_deg"]), np.asarray(w["frequency_hz"], dtype=float),
+                              cg, sig))
+    rig = _rig_layout(doc.get("rig") or {}, src)
+    feats = Features(spec.laminate, spec.length, spec.width, rig, modal, tuple(waves),
+                     specimen_name=spec.name)
+    return ParsedFeatures(feats, spec, tuple(notes))
+
+
+def features_document(features: Features, specimen: Any) -> dict:
+    """The features document (CONTRACT section 2) of ``features``; ``specimen`` is
+    what goes under ``specimen`` (a path, a built-in name or a table). NaN stays
+    NaN (written as null by :func:`write_features`)."""
+    doc: dict[str, Any] = {"specimen": specimen}
+    md = features.modal
+    if md is not None:
+        doc["modal"] = {"frequencies_hz": np.asarray(md.frequency_hz, float).tolist(),
+                        "sigma_hz": np.broadcast_to(md.sigma_hz, np.shape(md.frequency_hz)).tolist()}
+        if md.shapes is not None:
+            doc["modal"]["mode_shapes"] = {"points": np.asarray(md.points, float).tolist(),
+                                           "values": np.asarray(md.shapes, float).tolist()}
+    doc["waves"] = [{"mode": w.mode, "direction_deg": w.direction_deg,
+                     "frequency_hz": np.asarray(w.frequency_hz, float).tolist(),
+                     "group_velocity_m_s": np.asarray(w.group_velocity_m_s, float).tolist(),
+                     "sigma_m_s": np.broadcast_to(w.sigma_m_s, np.shape(w.frequency_hz)).tolist()}
+                    for w in features.waves]
+    rig = features.rig
+    r: dict[str, Any] = {}
+    if rig.temperature_c is not None:
+        r["temperature_c"] = rig.temperature_c
+    masses = rig.accelerometer_masses
+    r["accelerometers"] = [{"x": x, "y": y, **({"mass_kg": masses[i]} if masses else {})}
+                           for i, (x, y) in enumerate(rig.accelerometers)]
+    r["supports"] = [{"x": x, "y": y} for x, y in rig.supports]
+    if rig.wave_path_m is not None:
+        r["wave_path_m"] = rig.wave_path_m
+    r["sensor_length_m"] = rig.sensor_length_m
+    if (rig.wavelet_bandwidth, rig.wavelet_center) != (RigLayout.wavelet_bandwidth, RigLayout.wavelet_center):
+        r["wavelet"] = {"bandwidth": rig.wavelet_bandwidth, "center": rig.wavelet_center}
+    doc["rig"] = r
+    return doc

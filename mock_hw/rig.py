@@ -43,15 +43,13 @@ import numpy as np
 from scipy import signal
 
 from drivers.protocol import ChannelConfig, NoTrigger, Record, Timing, Trigger
+from engine.forward.effects import ALPHA_FIBRE, ALPHA_ISOTROPIC, ALPHA_MATRIX, EFFECTS
 from engine.laminate import Laminate
 
 OVERSAMPLE = 4
 ROLE_IDS = {"hammer": 0, "wave": 1}
 
-#: temperature coefficients of the moduli, 1/K: E -> E (1 + alpha dT)
-ALPHA_FIBRE = -1.0e-4      # E1 of an orthotropic ply (fibre dominated)
-ALPHA_MATRIX = -2.0e-3     # E2, G12, G13, G23 (matrix dominated)
-ALPHA_ISOTROPIC = -4.0e-4  # E, G of an isotropic metal (aluminium ~ -0.04 %/K)
+#: temperature coefficients of the moduli (ALPHA_*) and the effect registry (EFFECTS): engine.forward.effects
 
 
 @dataclass(frozen=True)
@@ -82,10 +80,7 @@ class Effects:
     sensor_aperture: float = 0.0
     viscoelastic: float = 0.0
 
-    UNITS: ClassVar[dict[str, str]] = {
-        "sensor_mass": "kg", "support_stiffness": "N/m", "temperature": "K",
-        "thickness": "1", "timing_offset": "s", "path_length": "m",
-        "sensor_aperture": "m", "viscoelastic": "1"}
+    UNITS: ClassVar[dict[str, str]] = {name: spec.unit for name, spec in EFFECTS.items()}
 
     @classmethod
     def names(cls) -> tuple[str, ...]:

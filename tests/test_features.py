@@ -122,3 +122,54 @@ def test_identification_reads_what_we_write(tmp_path: Path):
     F.write_features(p, doc, specimen_path="cfrp")
     prob = load_problem(p)
     assert len(prob.blocks) == 2
+
+
+# -- the one parser: document <-> engine.features.Features -------------------------
+def test_parse_gives_the_engine_form_and_document_gives_it_back():
+    doc = json.loads(json.dumps(EXAMPLE))
+    doc["specimen"] = "cfrp"
+    doc["waves"][0]["group_velocity_m_s"] = [812.0, None]
+    parsed = F.parse_features(doc)
+    ft = parsed.features
+    assert parsed.specimen.name == ft.specimen_name and ft.length == parsed.specimen.length
+    assert ft.modal.frequency_hz.tolist() == [37.3, 85.8, 110.9]
+    assert ft.modal.shapes.tolist() == [[1.0, -0.5], [0.2, 1.0], [1.0, 1.0]]
+    w = ft.waves[0]
+    assert (w.mode, w.direction_deg, w.frequency_hz.tolist()) == ("A0", 0.0, [5000.0, 10000.0])
+    assert w.group_velocity_m_s[0] == 812.0 and math.isnan(w.group_velocity_m_s[1])
+    assert ft.rig.accelerometers == ((0.02, 0.02),) and ft.rig.accelerometer_masses == (0.002,)
+    assert ft.rig.masses() == [(0.02, 0.02, 0.002)]
+    assert (ft.rig.wave_path_m, ft.rig.sensor_length_m, ft.rig.temperature_c) == (0.375, 0.01, 23.0)
+    assert parsed.notes == ()
+    back = F.features_document(ft, "cfrp")
+    again = F.parse_features(back).features
+    for a, b in ((ft.modal.frequency_hz, again.modal.frequency_hz), (ft.modal.sigma_hz, again.modal.sigma_hz),
+                 (ft.modal.points, again.modal.points), (ft.waves[0].sigma_m_s, again.waves[0].sigma_m_s)):
+        assert a.tolist() == b.tolist()
+    assert again.rig == ft.rig
+    v = back["waves"][0]["group_velocity_m_s"]
+    assert v[0] == 812.0 and math.isnan(v[1])      # written as null by write_features
+
+
+def test_parse_assumes_sigmas_with_a_note():
+    doc = {"specimen": "cfrp", "modal": {"frequencies_hz": [100.0, 200.0]},
+           "waves": [{"mode": "A0", "frequency_hz": [1e4], "group_velocity_m_s": [900.0]}]}
+    parsed = F.parse_features(doc)
+    assert parsed.features.modal.sigma_hz.tolist() == pytest.approx([0.1, 0.2])   # 0.1 %
+    assert parsed.features.waves[0].sigma_m_s.tolist() == pytest.approx([9.0])    # 1 %
+    assert parsed.notes == ("modal.sigma_hz absent: assuming 0.1% of the values",
+                            "waves[0].sigma_m_s absent: assuming 1.0% of the values")
+
+
+def test_diagnosis_reads_a_file_with_an_unmeasured_velocity(tmp_path: Path):
+    """A null velocity (what labid analyze writes for a frequency it cannot pick) is read
+    back as NaN; the diagnosis drops that point instead of rejecting the file."""
+    from labid.diagnosis import problem_and_notes
+    doc = json.loads(json.dumps(EXAMPLE))
+    doc["specimen"] = "cfrp"
+    doc["waves"][0]["group_velocity_m_s"] = [812.0, None]
+    p = tmp_path / "f.json"
+    F.write_features(p, doc)
+    problem, _ = problem_and_notes(F.read_features(p), tmp_path, str(p))
+    w = problem.waves[0]
+    assert w.frequency_hz.tolist() == [5000.0] and w.group_velocity_m_s.tolist() == [812.0]

@@ -13,17 +13,17 @@ import pytest
 from scipy import stats
 
 from engine.gap import GapOptions, diagnose, gap_test
-from engine.gap_forward import ALPHA_FIBRE, ALPHA_MATRIX, ForwardModel
+from engine.forward import ALPHA_FIBRE, ALPHA_MATRIX, EFFECTS, ForwardModel
 from labid.cli import main
 from labid.diagnosis import problem_from_features
-from mock_hw.blind import draw_case
+from bench.blind import draw_case
 
 MESH = (4, 4)
 
 
 def _diagnose(case, **opts):
     problem = problem_from_features(case.features)
-    return diagnose(problem, GapOptions(**opts), forward=ForwardModel(problem, mesh=MESH))
+    return diagnose(problem, GapOptions(**opts), forward=ForwardModel(problem, mesh=MESH)).to_dict()
 
 
 # -- chi^2 test calibration (linear Gaussian model, exact law) ------------------
@@ -103,6 +103,13 @@ def test_timing_offset_is_found_from_group_velocities():
     assert e["unit"] == "s" and e["magnitude"] == pytest.approx(case.magnitude, rel=0.15)
 
 
+def test_the_simulated_rig_injects_the_effects_the_diagnoser_knows():
+    """One effect registry (engine.forward.effects): the rig's effects are its names."""
+    from mock_hw.rig import Effects
+    assert Effects.names() == tuple(EFFECTS)
+    assert Effects.parse("sensor_mass=0.003").active() == {"sensor_mass": 0.003}
+
+
 # -- command line ------------------------------------------------------------------
 @pytest.mark.slow
 def test_cli_writes_contract_keys_and_plot(tmp_path):
@@ -133,9 +140,9 @@ def test_cli_bad_features_exit_2_with_one_line(tmp_path, capsys):
 def test_aperture_delay_model_matches_morlet_ridge_of_a_dispersive_packet():
     """A strain sensor of length L filters by sinc(kL/2) (zero phase): the Morlet
     (B=2, C=5) ridge picked by engine.waves moves by tau_g' sigma_f^2 d ln|H|/df,
-    the model of engine.gap_forward. Packet: exact thin-plate flexural dispersion."""
+    the model of engine.forward.model. Packet: exact thin-plate flexural dispersion."""
     from engine import waves
-    from engine.gap_forward import _log_sinc_slope
+    from engine.forward import log_sinc_slope
     fs, n, d = 5e6, 2 ** 15, 0.25
     f = np.fft.rfftfreq(n, 1 / fs)
     beta = 1000.0 ** 2 / (2 * np.pi * 1e5)        # c_p = sqrt(beta w): 1000 m/s at 100 kHz
@@ -156,7 +163,7 @@ def test_aperture_delay_model_matches_morlet_ridge_of_a_dispersive_packet():
     sig_f = f0 / (np.pi * wl.center * np.sqrt(2 * wl.bandwidth))
     for L in (0.004, 0.008):
         kk = np.sqrt(2 * np.pi * f0 / beta)
-        slope = _log_sinc_slope(kk * L / 2) * (L / 2) * (2 * np.pi / cg)
+        slope = log_sinc_slope(kk * L / 2) * (L / 2) * (2 * np.pi / cg)
         model = dtau_df * sig_f ** 2 * slope
         assert np.all(model > 0)
         np.testing.assert_allclose(picks(L) - base, model, rtol=0.03)

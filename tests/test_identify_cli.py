@@ -177,7 +177,7 @@ def test_consistency_check_flags_disagreeing_data_sets():
     """Two data sets that each see E and G; the second is biased by 5 sigma per point:
     the chi^2 test on (combined - separate minima) warns and names the parameters.
     Without the bias: no warning. Forward models linear in log p (exact)."""
-    from engine.identify import DataBlock
+    from engine.fit import DataBlock
     from labid.identification import Problem, run
     from labid.specimen import load_specimen
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.identify import (DataBlock, IdentificationError, Prior, bayesian_update, estimate,
+from engine.fit import (DataBlock, IdentificationError, Prior, bayesian_update, estimate,
                              linearised_block, nelder_mead_fit)
 
 

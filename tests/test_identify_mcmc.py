@@ -6,8 +6,7 @@ import pytest
 
 pytest.importorskip("emcee")
 
-from engine.identify import DataBlock, estimate  # noqa: E402
-from engine.identify_mcmc import sample_posterior  # noqa: E402
+from engine.fit import DataBlock, estimate, sample_posterior  # noqa: E402
 
 
 @pytest.mark.slow

@@ -5,8 +5,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from engine.identify import estimate
-from engine.identify_models import mac, modal_block, pair_by_mac
+from engine.fit import estimate
+from engine.forward import mac, modal_block, pair_by_mac
 
 
 def test_mac_definition():

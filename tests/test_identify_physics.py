@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from engine.identify import DataBlock, estimate, linearised_block, nelder_mead_fit
-from engine.identify_models import wave_block
+from engine.fit import DataBlock, estimate, linearised_block, nelder_mead_fit
+from engine.forward import wave_block
 from engine.plate import PlateModel
 from engine.safe import group_velocity
 from labid.identification import problem_from_features, run, synthetic_features

@@ -5,7 +5,7 @@ The log-posterior is the same misfit the least-squares estimators minimise:
 over ``theta = log p`` (a flat prior in log p where no prior is given).
 Unphysical points (the forward model raises ``ValueError``) have zero
 density. Walkers start in a small Gaussian ball drawn from the Laplace
-covariance of a previous :class:`~engine.identify.Estimate`.
+covariance of a previous :class:`~engine.fit.uncertainty.Estimate`.
 """
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .identify import DataBlock, Estimate, IdentificationError, Prior, _Coords, _prior_arrays, _Problem
+from .problem import Coords, DataBlock, IdentificationError, Prior, Problem, prior_arrays
+from .uncertainty import Estimate
 
 __all__ = ["Posterior", "sample_posterior"]
 
@@ -51,19 +52,19 @@ def sample_posterior(blocks: Sequence[DataBlock], est: Estimate, *, prior: Prior
     """Sample the posterior around ``est`` (its names and values; its Laplace
     covariance, scaled by ``ball``, spreads the initial walkers).
 
-    ``prior`` as in :func:`engine.identify.estimate`, centred on ``est.start``.
+    ``prior`` as in :func:`engine.fit.estimate`, centred on ``est.start``.
     Needs the ``emcee`` package.
     """
     try:
-        import emcee  # noqa: PLC0415
+        import emcee  # noqa: PLC0415 - heavy, needed only for MCMC (labid identify --mcmc)
     except ImportError:  # pragma: no cover - dependency declared in pyproject
         raise IdentificationError("MCMC needs the 'emcee' package (pip install emcee)") from None
     names = tuple(est.names)
     k = len(names)
     p_start = np.array([est.start[n] for n in names])
-    coords = _Coords(names, p_start, "log")
-    prob = _Problem(blocks, coords)
-    tp, w = _prior_arrays(prior, coords, p_start)
+    coords = Coords(names, p_start, "log")
+    prob = Problem(blocks, coords)
+    tp, w = prior_arrays(prior, coords, p_start)
     theta_hat = coords.theta(est.values)
 
     def log_post(th: np.ndarray) -> float:

@@ -5,9 +5,10 @@
 the library) with a physically typical magnitude (``RANGES``), and the noise,
 and returns the features (CONTRACT section 2, specimen inline as the nominal
 table) plus the hidden truth. The features are produced by the forward models
-directly (``engine.gap_forward.ForwardModel``); with ``outside=True`` by a
+directly (``engine.forward.ForwardModel``); with ``outside=True`` by a
 different discretisation than the diagnoser's (finer plate mesh, higher SAFE
-order), so a diagnoser tuned to its own simulator shows it.
+order), so a diagnoser tuned to its own simulator shows it. A benchmark case
+generator (bench/bench_gap.py, tests/test_gap.py), not part of the rig.
 
 Out-of-library conditions:
   ply_angle   the whole layup turned by +-2..5 deg in the plate plane;
@@ -27,9 +28,13 @@ from importlib import resources
 
 import numpy as np
 
-from engine.gap_forward import (EFFECTS, ForwardModel, GapProblem, ModalData, RigLayout,
-                                WaveData)
+from engine.features import Features, ModalData, RigLayout, WaveData
+from engine.forward import EFFECTS, ForwardModel
 from engine.laminate import Laminate, Ply
+from engine.plate import Mesh, PlateModel
+from engine.safe import default_discretisation
+from labid.features import features_document
+from labid.specimen import specimen_from_dict
 
 LIBRARY = tuple(EFFECTS)
 OUT_OF_LIBRARY = ("ply_angle", "soft_patch")
@@ -82,7 +87,6 @@ def nominal_specimen_table() -> dict:
 
 
 def _laminate(table: dict) -> tuple[Laminate, float, float]:
-    from labid.specimen import specimen_from_dict
     s = specimen_from_dict(table)
     return s.laminate, s.length, s.width
 
@@ -122,21 +126,18 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     true_lam = lam
     if kind == "ply_angle":
         true_lam = Laminate(tuple(Ply(p.material, p.angle_deg + mag, p.thickness) for p in lam.plies))
-    problem = GapProblem(true_lam, length, width, rig,
-                         ModalData(np.ones(N_MODES), np.ones(N_MODES), pairing="order"), waves)
+    problem = Features(true_lam, length, width, rig,
+                       ModalData(np.ones(N_MODES), np.ones(N_MODES), pairing="order"), waves)
     if outside:
-        from engine.plate import Mesh
         mesh = Mesh.default(length, width, lam.thickness, n=9)
     plate_model = None
     if kind == "soft_patch" or outside:
-        from engine.plate import PlateModel
         plate_model = PlateModel.build(true_lam, length, width, mesh)
         if kind == "soft_patch":
             x0, y0 = rng.uniform(0.08, 0.25, size=2)
             plate_model = plate_model.with_stiffness_loss(x0, y0, 0.06, mag, truth)
     safe_order = None
     if outside:
-        from engine.safe import default_discretisation
         safe_order = default_discretisation(lam, F_WAVES[1] * 1.5)[0] + 2
     fw = ForwardModel(problem, mesh=mesh, safe_order=safe_order, plate_model=plate_model)
     effects = {kind: mag} if kind in LIBRARY else {}
@@ -144,30 +145,18 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     # mode shapes of the true (perturbed) plate at the measurement points
     mf = fw.modal_forward(effects.get("sensor_mass", 0.0), effects.get("support_stiffness", 0.0),
                           effects.get("thickness", 0.0))
-    modes, idx = mf.solve(truth)
+    modes, idx, _ = mf.solve(truth)
     pts = _shape_points()
     shapes = mf.model.shapes_at(modes, pts)[idx]
     shapes = shapes / np.max(np.abs(shapes), axis=1, keepdims=True)
     shapes = shapes + 0.02 * rng.standard_normal(shapes.shape)
     sig = np.concatenate([MODAL_REL_SIGMA * y[:N_MODES], WAVE_REL_SIGMA * y[N_MODES:]])
     obs = y + sig * rng.standard_normal(y.shape)
-    feats = {
-        "specimen": copy.deepcopy(table),
-        "modal": {"frequencies_hz": obs[:N_MODES].tolist(), "sigma_hz": sig[:N_MODES].tolist(),
-                  "mode_shapes": {"points": pts.tolist(), "values": shapes.tolist()}},
-        "waves": [],
-        "rig": {"temperature_c": 23.0,
-                "accelerometers": [{"x": x, "y": y_, "mass_kg": ACCEL_MASS_KG} for x, y_ in ACCELEROMETERS],
-                "supports": [{"x": x, "y": y_} for x, y_ in SUPPORTS],
-                "wave_path_m": WAVE_PATH_M, "sensor_length_m": SENSOR_LENGTH_M},
-    }
-    i = N_MODES
-    for w in waves:
-        n = len(w.frequency_hz)
-        feats["waves"].append({"mode": w.mode, "direction_deg": w.direction_deg,
-                               "frequency_hz": np.asarray(w.frequency_hz).tolist(),
-                               "group_velocity_m_s": obs[i:i + n].tolist(),
-                               "sigma_m_s": sig[i:i + n].tolist()})
-        i += n
+    n_w = [len(w.frequency_hz) for w in waves]
+    ends = N_MODES + np.cumsum([0] + n_w)
+    measured = Features(lam, length, width, rig, ModalData(obs[:N_MODES], sig[:N_MODES], pts, shapes),
+                        tuple(WaveData(w.mode, w.direction_deg, w.frequency_hz, obs[a:b], sig[a:b])
+                              for w, a, b in zip(waves, ends[:-1], ends[1:])))
+    feats = features_document(measured, copy.deepcopy(table))
     unit = EFFECTS[kind].unit if kind in EFFECTS else ("deg" if kind == "ply_angle" else "1")
     return BlindCase(int(seed), kind, mag, unit, feats, truth, bool(outside), y)

@@ -1,0 +1,89 @@
+"""The candidate unmodelled effects: the single registry, and the physics they share.
+
+Each effect is a physical addition to the nominal model of the plate and rig
+(CONTRACT effect names, SI units). The simulated rig (``mock_hw.rig``) injects
+them, :class:`~engine.forward.model.ForwardModel` predicts the features with
+them, and the gap diagnosis (``engine.gap``) looks for them; all read names,
+units, plausible ranges, typical magnitudes and modalities from
+:data:`EFFECTS`.
+
+sensor_mass (kg)        point mass at every accelerometer (engine.plate PlateModel.with_point_masses).
+support_stiffness (N/m) transverse spring at every support (engine.plate PlateModel.with_springs).
+temperature (K)         moduli scale by (1 + alpha dT): ALPHA_FIBRE for E1,
+                        ALPHA_MATRIX for E2, G12, G13, G23, ALPHA_ISOTROPIC for E, G.
+thickness (1)           relative thickness error, every ply (laminate.scaled_thickness).
+timing_offset (s)       measured delay d/cg + dt, so cg_obs = d / (d/cg + dt).
+path_length (m)         true path d + delta, processed with d: cg_obs = cg d / (d + delta).
+sensor_aperture (m)     strain averaged over length L (replacing the nominal L0):
+                        a zero-phase wavenumber filter sinc(kL/2) (:func:`log_sinc_slope`).
+viscoelastic (1)        constant-Q (Kjartansson) loss factor eta; the constants
+                        hold at F_REF.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+__all__ = ["EffectSpec", "EFFECTS", "EffectError", "ALPHA_FIBRE", "ALPHA_MATRIX", "ALPHA_ISOTROPIC",
+           "F_REF", "temperature_params", "log_sinc_slope"]
+
+#: temperature coefficients of the moduli, 1/K: E -> E (1 + alpha dT) (typical CFRP / aluminium)
+ALPHA_FIBRE = -1.0e-4      # E1 of an orthotropic ply (fibre dominated)
+ALPHA_MATRIX = -2.0e-3     # E2, G12, G13, G23 (matrix dominated)
+ALPHA_ISOTROPIC = -4.0e-4  # E, G of an isotropic metal (aluminium ~ -0.04 %/K)
+#: reference frequency (Hz) at which the constants of a viscoelastic plate hold
+F_REF = 1000.0
+
+
+class EffectError(ValueError):
+    """An effect the forward model cannot apply (unknown name, rig geometry it needs missing)."""
+
+
+@dataclass(frozen=True)
+class EffectSpec:
+    """A candidate effect: unit, plausible range [lo, hi], typical magnitude (FD scale)."""
+
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    typical: float
+    modalities: tuple[str, ...]
+    doc: str
+
+
+EFFECTS: dict[str, EffectSpec] = {e.name: e for e in (
+    EffectSpec("sensor_mass", "kg", 0.0, 0.03, 0.002, ("modal",), "accelerometer mass at each sensor"),
+    EffectSpec("support_stiffness", "N/m", 0.0, 5000.0, 200.0, ("modal",), "suspension spring at each support"),
+    EffectSpec("temperature", "K", -30.0, 30.0, 5.0, ("modal", "waves"), "specimen minus reference temperature"),
+    EffectSpec("thickness", "1", -0.1, 0.1, 0.01, ("modal", "waves"), "relative thickness error"),
+    EffectSpec("timing_offset", "s", -2e-5, 2e-5, 1e-6, ("waves",), "delay added to every wave arrival"),
+    EffectSpec("path_length", "m", -0.05, 0.05, 0.005, ("waves",), "true minus nominal wave path"),
+    EffectSpec("sensor_aperture", "m", 0.0, 0.03, 0.01, ("waves",), "strain-averaging length of the wave sensor"),
+    EffectSpec("viscoelastic", "1", 0.0, 0.1, 0.01, ("modal", "waves"), "constant-Q loss factor"),
+)}
+
+
+def temperature_params(params: Mapping[str, float], dT: float) -> dict[str, float]:
+    """Constants at a temperature dT (K) above the one they hold at."""
+    out = dict(params)
+    for k in out:
+        if k == "E1":
+            out[k] *= 1.0 + ALPHA_FIBRE * dT
+        elif k in ("E2", "G12", "G13", "G23"):
+            out[k] *= 1.0 + ALPHA_MATRIX * dT
+        elif k in ("E", "G"):
+            out[k] *= 1.0 + ALPHA_ISOTROPIC * dT
+    return out
+
+
+def log_sinc_slope(x: np.ndarray) -> np.ndarray:
+    """d ln|sin x / x| / dx, finite near the nulls (capped 0.15 rad away)."""
+    x = np.asarray(x, float)
+    n = np.round(x / np.pi)
+    near = (n >= 1) & (np.abs(x - n * np.pi) < 0.15)
+    xs = np.where(near, n * np.pi - 0.15, x)
+    xs = np.where(xs < 1e-6, 1e-6, xs)
+    return np.where(x < 1e-6, 0.0, 1.0 / np.tan(xs) - 1.0 / xs)

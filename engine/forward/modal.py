@@ -1,0 +1,189 @@
+"""Natural frequencies predicted by the plate model, paired with the measured modes.
+
+* :class:`ModalForward` -- frequencies from ``engine.plate`` with analytic
+  sensitivities (d omega^2/dp -> d f/dp = (d omega^2/dp) / (8 pi^2 f)), mode
+  pairing by MAC when measured mode shapes are given, otherwise by order with
+  a mode-switching check (MAC tracking of the predicted shapes).
+* :func:`pair_by_frequency` / :class:`SelectedModes` -- pairing fixed once by
+  nearest log-frequency (plus 1 - MAC when a few shape points exist), for the
+  gap diagnosis when too few shape points are measured for MAC pairing.
+* :func:`modal_block` -- the :class:`~engine.fit.DataBlock` of the estimators.
+
+Units SI: Hz, Pa. Parameters use the contract names (``E1 E2 nu12 G12 G13
+G23 density`` or ``E G nu density``).
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping, NamedTuple, Sequence
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ..fit import DataBlock, IdentificationError
+
+__all__ = ["mac", "pair_by_mac", "pair_by_frequency", "ModalSolution", "ModalForward", "SelectedModes",
+           "modal_block", "MIN_MAC_POINTS", "PAIR_REL_FREQ"]
+
+#: fewer shape points than this: measured modes are paired once, at the nominal
+#: model, by log-frequency distance / PAIR_REL_FREQ + (1 - MAC) (Hungarian)
+MIN_MAC_POINTS = 6
+PAIR_REL_FREQ = 0.05
+
+
+def mac(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Modal assurance criterion between rows of ``a`` (m, p) and rows of ``b`` (n, p)."""
+    a, b = np.atleast_2d(a), np.atleast_2d(b)
+    num = np.abs(a @ b.T) ** 2
+    den = np.outer(np.einsum("ij,ij->i", a, a), np.einsum("ij,ij->i", b, b))
+    return num / np.where(den > 0, den, np.inf)
+
+
+def pair_by_mac(measured: np.ndarray, predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted mode index for each measured mode (one-to-one, maximal total MAC).
+
+    Returns ``(index, mac_value)`` arrays of length ``len(measured)``.
+    """
+    M = mac(measured, predicted)
+    rows, cols = linear_sum_assignment(-M)
+    idx = np.empty(M.shape[0], int)
+    idx[rows] = cols
+    return idx, M[np.arange(M.shape[0]), idx]
+
+
+def pair_by_frequency(measured_hz, predicted_hz, mac_values: np.ndarray | None = None,
+                      rel: float = PAIR_REL_FREQ) -> np.ndarray:
+    """Predicted mode index for each measured frequency (one-to-one, Hungarian).
+
+    Cost: |log f_measured - log f_predicted| / ``rel``, plus ``1 - MAC`` when
+    ``mac_values`` (measured x predicted) is given; predicted modes may be
+    left unpaired (missing measured modes).
+    """
+    cost = np.abs(np.log(np.asarray(measured_hz, float))[:, None]
+                  - np.log(predicted_hz)[None, :]) / rel
+    if mac_values is not None:
+        cost = cost + 1.0 - mac_values
+    rows, cols = linear_sum_assignment(cost)
+    return cols[np.argsort(rows)]
+
+
+class ModalSolution(NamedTuple):
+    """One evaluation: the model's ``Modes``, the predicted mode index of each
+    measured mode, and the pairing warnings of this evaluation."""
+
+    modes: Any
+    index: np.ndarray
+    warnings: tuple[str, ...] = ()
+
+
+class ModalForward:
+    """Predicted natural frequencies paired with the measured ones.
+
+    ``model`` is an ``engine.plate.PlateModel`` (with any point masses or
+    springs already added). With ``points``/``shapes`` (measured mode shapes,
+    ``shapes[i][j]`` = mode i at point j) every prediction solves
+    ``n_measured + n_extra`` modes and pairs them by MAC; otherwise mode i is
+    paired with predicted mode i and a warning reports likely mode switching
+    (the predicted shapes no longer match, by MAC, those at the first
+    evaluation in the same order).
+
+    State: the last solution (a one-entry cache), the reference shapes of the
+    mode-switching check and :attr:`warnings`, the distinct warnings since
+    the last :meth:`reset_tracking` (what a fit reports); :attr:`pairing` and
+    :attr:`mac_values` are those of the last solution.
+    """
+
+    def __init__(self, model, n_measured: int, *, points=None, shapes=None,
+                 material: str | None = None, n_extra: int = 4, min_mac: float = 0.6):
+        self.model, self.n, self.material = model, int(n_measured), material
+        self.points = None if points is None else np.asarray(points, float)
+        self.shapes = None if shapes is None else np.asarray(shapes, float)
+        if self.shapes is not None:
+            if self.points is None or self.shapes.shape != (self.n, len(self.points)):
+                raise IdentificationError(
+                    f"mode_shapes: expected values of shape ({self.n}, n_points) with points (n_points, 2)")
+        self.n_solve = self.n + (n_extra if self.shapes is not None else 0)
+        self.min_mac = min_mac
+        self._cache: tuple | None = None
+        self._ref_shapes: np.ndarray | None = None
+        self.warnings: list[str] = []
+        self.pairing: np.ndarray = np.arange(self.n)
+        self.mac_values: np.ndarray | None = None
+
+    def solve(self, params: Mapping[str, float]) -> ModalSolution:
+        """Modes of the model at ``params``, the pairing and its warnings."""
+        key = tuple(sorted((k, float(v)) for k, v in params.items()))
+        if self._cache is not None and self._cache[0] == key:
+            return self._cache[1]
+        modes = self.model.solve(self.n_solve, params=dict(params), material=self.material)
+        found: list[str] = []
+        if self.shapes is not None:
+            pred = self.model.shapes_at(modes, self.points)
+            idx, mv = pair_by_mac(self.shapes, pred)
+            self.pairing, self.mac_values = idx, mv
+            low = np.flatnonzero(mv < self.min_mac)
+            if low.size:
+                found.append(f"modal: weak MAC pairing for measured mode(s) {low.tolist()} "
+                             f"(MAC {np.round(mv[low], 2).tolist()})")
+        else:
+            idx = np.arange(self.n)
+            phi = modes.shapes[:, :self.n].T
+            if self._ref_shapes is None:
+                self._ref_shapes = phi
+            else:
+                best = np.argmax(mac(phi, self._ref_shapes), axis=1)
+                moved = np.flatnonzero(best != idx)
+                if moved.size:
+                    found.append("modal: likely mode switching: predicted mode(s) "
+                                 f"{moved.tolist()} now resemble start mode(s) {best[moved].tolist()}; "
+                                 "pairing by order may be wrong (supply mode shapes for MAC pairing)")
+        for msg in found:
+            if msg not in self.warnings:
+                self.warnings.append(msg)
+        sol = ModalSolution(modes, idx, tuple(found))
+        self._cache = (key, sol)
+        return sol
+
+    def reset_tracking(self) -> None:
+        """Forget the warnings and the reference shapes of the mode-switching check
+        (the next solve becomes the reference), e.g. before a new fit."""
+        self.warnings.clear()
+        self._ref_shapes = None
+
+    def predict(self, params: Mapping[str, float]) -> np.ndarray:
+        sol = self.solve(params)
+        return sol.modes.frequencies_hz[sol.index]
+
+    def jacobian(self, params: Mapping[str, float], names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+        modes, idx, _ = self.solve(params)
+        dlam = self.model.eigen_sensitivities(modes, list(names), params=dict(params),
+                                              material=self.material)[idx]
+        f = modes.frequencies_hz[idx]
+        return f, dlam / (8.0 * np.pi ** 2 * f)[:, None]
+
+
+class SelectedModes:
+    """A :class:`ModalForward` over n + extra modes (by order) restricted to a fixed
+    selection ``sel`` (one predicted mode index per measured mode)."""
+
+    def __init__(self, inner: ModalForward, sel: np.ndarray):
+        self.inner, self.sel, self.model = inner, sel, inner.model
+
+    def predict(self, params):
+        return self.inner.predict(params)[self.sel]
+
+    def jacobian(self, params, names):
+        f, J = self.inner.jacobian(params, names)
+        return f[self.sel], J[self.sel]
+
+    def solve(self, params) -> ModalSolution:
+        sol = self.inner.solve(params)
+        return ModalSolution(sol.modes, sol.index[self.sel], sol.warnings)
+
+
+def modal_block(model, frequencies_hz, sigma_hz, *, points=None, shapes=None,
+                material: str | None = None, name: str = "modal", n_extra: int = 4
+                ) -> tuple[DataBlock, ModalForward]:
+    """Natural-frequency data block (Hz) and its forward model (for warnings/pairing)."""
+    f = np.asarray(frequencies_hz, float)
+    fwd = ModalForward(model, len(f), points=points, shapes=shapes, material=material, n_extra=n_extra)
+    return DataBlock(name, f, sigma_hz, fwd.predict, fwd.jacobian, kind="modal"), fwd

@@ -1,0 +1,380 @@
+"""Sim-to-real gap diagnosis: is there a gap, where, which unmodelled effect, how far it shrinks.
+
+Procedure (:func:`diagnose`), on features whitened by their sigmas (plus a small
+model-discretisation allowance, ``GapOptions.model_rel_sigma``):
+
+1. Best fit of the constants (``engine.fit.estimate``, log-parameters,
+   Gaussian prior ``prior_rel_std`` about the nominal values); chi^2 of the
+   whitened residuals against the chi^2 law on the degrees of freedom left
+   (n minus the trace of the hat matrix, :func:`gap_test`): a gap is declared
+   when the p-value is below ``alpha`` (the false-alarm rate on clean data).
+2. Where: chi^2 split by modality, mode, mode family (from the predicted mode
+   shapes), frequency band, wave mode and direction (:mod:`engine.gap.where`).
+3. Which: every candidate effect is screened (:mod:`engine.gap.candidates`:
+   signature, what the constants absorb, detectability); the ``top_k`` best
+   linear candidates are refitted jointly with the constants
+   (:mod:`engine.gap.refit`), ranked by chi^2 (equal parameter count, so by
+   BIC too), and checked on held-out data (two interleaved folds of modes and
+   of wave bands, linearised about the fit).
+4. Verdict: ``none`` without a significant gap; the best effect when it
+   passes the chi^2 test (p > ``accept_alpha``), beats "no effect" by BIC and
+   shrinks the held-out gap; otherwise ``unattributed``. Effects whose chi^2
+   is within ``confusable_dchi2`` of the best form the confusable set.
+
+Gap figures are rms whitened residuals (1 = noise level). :func:`diagnose`
+returns a frozen :class:`GapResult`; ``GapResult.to_dict()`` is the JSON of
+``labid diagnose`` (CONTRACT section 3 keys first).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, replace
+from typing import Mapping
+
+import numpy as np
+from scipy import stats
+
+from ..features import Features
+from ..fit import Estimate, Prior, estimate, whitened_jacobian
+from ..forward import EFFECTS, ForwardModel
+from .candidates import Candidate, applies, screen
+from .refit import RefitError, refit
+from .residuals import GapError, GapFit
+from .where import GroupStat, feature_labels, folds, group_table, groups, held_out, mode_families
+
+__all__ = ["GapOptions", "GapResult", "GapFigures", "RankedEffect", "Undetectable", "ConstantsChange",
+           "FeatureResiduals", "diagnose", "gap_test"]
+
+
+@dataclass(frozen=True)
+class GapOptions:
+    """Tuning of the diagnosis (see module docstring)."""
+
+    alpha: float = 0.01
+    accept_alpha: float = 0.001
+    prior_rel_std: float = 0.3
+    model_rel_sigma: tuple[float, float] = (1.5e-4, 2e-4)   # (modal, waves) relative
+    detect_sigma: float = 3.0
+    top_k: int = 4
+    confusable_dchi2: float = 4.0
+    candidates: tuple[str, ...] = tuple(EFFECTS)
+    gn_iter: int = 15
+
+
+def gap_test(r: np.ndarray, J: np.ndarray, w: np.ndarray, alpha: float) -> dict:
+    """Chi^2 test of whitened residuals r of a (prior-regularised) least-squares fit.
+
+    J: whitened Jacobian (n, k) at the fit; w: prior sqrt-precisions (k,).
+    Degrees of freedom n - trace(H), H = J (J'J + diag(w^2))^-1 J'; a gap is
+    significant when P(chi^2_dof >= r'r) < alpha (the false-alarm rate).
+    """
+    r = np.asarray(r, float)
+    n = len(r)
+    A = J.T @ J + np.diag(np.asarray(w, float) ** 2)
+    dof = max(n - float(np.trace(J @ np.linalg.solve(A, J.T))), 1.0)
+    chi = float(r @ r)
+    p = float(stats.chi2.sf(chi, dof))
+    return {"chi2": chi, "dof": dof, "p_value": p, "threshold": float(stats.chi2.isf(alpha, dof)),
+            "significant": bool(p < alpha)}
+
+
+# ------------------------------------------------------------------ result --
+@dataclass(frozen=True)
+class GapFigures:
+    """The gap before and after the chosen effect (rms residual/sigma), chi^2 test figures."""
+
+    before: float
+    after: float
+    held_out_before: float
+    held_out_after: float
+    chi2_before: float
+    chi2_after: float
+    dof: float
+    n: int
+    p_value_before: float
+    p_value_after: float
+    threshold_chi2: float
+    false_alarm_rate: float
+    significant: bool
+    unit: str = "rms of residual/sigma (1 = noise level)"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class RankedEffect:
+    """One candidate in the ranking (``std``, ``held_out_after``, ``constants_after``,
+    ``iterations`` only when refitted)."""
+
+    name: str
+    magnitude: float
+    std: float | None
+    unit: str
+    gap_after: float
+    score: float
+    delta_chi2: float
+    refitted: bool
+    held_out_after: float | None
+    detectable: bool
+    absorbed_fraction: float
+    bias_in_constants_per_unit: Mapping[str, float]
+    constants_after: Mapping[str, float] | None
+    iterations: int | None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Undetectable:
+    """An effect the constants absorb, with the bias it puts into them per unit magnitude."""
+
+    name: str
+    absorbed_fraction: float
+    unit: str
+    bias_in_constants_per_unit: Mapping[str, float]
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class ConstantsChange:
+    """Fitted constants without effect (and their std), and with the chosen effect (SI)."""
+
+    before: Mapping[str, float]
+    before_std: Mapping[str, float]
+    after: Mapping[str, float]
+    relative_change: Mapping[str, float]
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class FeatureResiduals:
+    """Per feature: label, modality, set, whitened residual before/after, sigma; mode families."""
+
+    labels: tuple[str, ...]
+    modality: tuple[str, ...]
+    set: tuple[str, ...]
+    residual_before: np.ndarray
+    residual_after: np.ndarray
+    sigma: np.ndarray
+    mode_families: tuple[str, ...] | None
+
+    def to_dict(self) -> dict:
+        return {"labels": list(self.labels), "modality": list(self.modality), "set": list(self.set),
+                "residual_before": self.residual_before.tolist(),
+                "residual_after": self.residual_after.tolist(), "sigma": self.sigma.tolist(),
+                "mode_families": None if self.mode_families is None else list(self.mode_families)}
+
+
+@dataclass(frozen=True)
+class GapResult:
+    """The diagnosis (see module docstring); :meth:`to_dict` gives the JSON document."""
+
+    gap: GapFigures
+    where: tuple[str, ...]
+    where_detail: tuple[GroupStat, ...]
+    effects: tuple[RankedEffect, ...]
+    verdict: str
+    confusable: tuple[str, ...]
+    undetectable: tuple[Undetectable, ...]
+    errors: Mapping[str, str]
+    groups: tuple[GroupStat, ...]
+    constants: ConstantsChange
+    features: FeatureResiduals
+    converged: bool
+    message: str
+
+    def to_dict(self) -> dict:
+        return {
+            "gap": self.gap.to_dict(),
+            "where": list(self.where),
+            "where_detail": [g.to_dict() for g in self.where_detail],
+            "effects": [e.to_dict() for e in self.effects],
+            "verdict": self.verdict,
+            "confusable": list(self.confusable),
+            "undetectable": [u.to_dict() for u in self.undetectable],
+            "errors": dict(self.errors),
+            "groups": [g.to_dict() for g in self.groups],
+            "constants": self.constants.to_dict(),
+            "features": self.features.to_dict(),
+            "identification": {"converged": self.converged, "message": self.message},
+        }
+
+
+# ------------------------------------------------------------------ steps --
+@dataclass(frozen=True)
+class _ConstantsFit:
+    """Step 1: the constants fitted without effect, and the gap test there."""
+
+    est: Estimate
+    p_hat: dict[str, float]
+    w: np.ndarray            # prior sqrt-weights (log constants)
+    theta_nom: np.ndarray    # log nominal constants
+    J: np.ndarray            # whitened Jacobian (log constants) at p_hat
+    r0: np.ndarray           # whitened residual at p_hat
+    test: dict
+
+    @property
+    def dtheta(self) -> np.ndarray:
+        return np.log([self.p_hat[n] for n in self.est.names]) - self.theta_nom
+
+
+def _check(problem: Features, opts: GapOptions) -> None:
+    if problem.modal is None and not problem.waves:
+        raise GapError("features hold neither modal frequencies nor wave group velocities")
+    if problem.waves and not problem.rig.wave_path_m:
+        raise GapError("waves given without rig.wave_path_m (needed for timing/path effects)")
+    unknown = set(opts.candidates) - set(EFFECTS)
+    if unknown:
+        raise GapError(f"candidates {sorted(unknown)}: expected names from {list(EFFECTS)}")
+
+
+def _fit_constants(F: GapFit, opts: GapOptions) -> _ConstantsFit:
+    names, nominal = F.names, F.nominal
+    blocks = F.blocks()
+    prior = Prior(mean=nominal, rel_std={n: opts.prior_rel_std for n in names})
+    try:
+        est = estimate(blocks, names, nominal, prior=prior, xtol=1e-4, dtol=1e-3, max_iter=30)
+    except np.linalg.LinAlgError as exc:
+        raise GapError(f"identification of the constants failed ({exc})") from None
+    p_hat = est.params
+    w = np.full(len(names), 1.0 / opts.prior_rel_std)
+    theta_nom = np.log([nominal[n] for n in names])
+    jacs = whitened_jacobian(blocks, p_hat, names)
+    J = np.vstack([jacs[b.name] for b in blocks])
+    r0 = F.residual(p_hat, {})
+    return _ConstantsFit(est, p_hat, w, theta_nom, J, r0, gap_test(r0, J, w, opts.alpha))
+
+
+def _families(problem: Features, fw: ForwardModel, p_hat) -> list[str] | None:
+    if problem.modal is None:
+        return None
+    try:
+        return mode_families(fw, p_hat)
+    except Exception:  # noqa: BLE001 - families are descriptive only
+        return None
+
+
+def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opts: GapOptions
+                      ) -> list[Candidate]:
+    """Every applicable candidate screened; the top_k detectable ones refitted."""
+    Ja = np.vstack([base.J, np.diag(base.w)])     # augmented Jacobian for projections (prior rows)
+    cands = [screen(name, F, base.p_hat, base.r0, Ja, F.names, opts.detect_sigma)
+             for name in opts.candidates if applies(name, problem)]
+    ranked = sorted([c for c in cands if c.error is None and c.detectable], key=lambda c: c.chi2_linear)
+    if not ranked:
+        return cands
+    Jnom = F.jacobian(F.nominal, {})
+    done: dict[str, Candidate] = {}
+    for c in ranked[:opts.top_k]:
+        try:
+            rf = refit(c.name, c.magnitude_linear, F, Jnom, base.w, base.theta_nom, fl, opts.gn_iter)
+            done[c.name] = replace(c, refit=rf)
+        except RefitError as exc:
+            done[c.name] = replace(c, error=str(exc))
+    return [done.get(c.name, c) for c in cands]
+
+
+def _verdict(refitted: list[Candidate], test: dict, ho0: float, n: int, opts: GapOptions
+             ) -> tuple[str, list[str], float | None]:
+    """(verdict, confusable set, p-value of the best refit when tested)."""
+    if not test["significant"]:
+        return "none", [], None
+    best = refitted[0] if refitted else None
+    if best is None:
+        return "unattributed", [], None
+    p_best = float(stats.chi2.sf(best.refit.chi2, max(test["dof"] - 1, 1)))
+    better = test["chi2"] - best.refit.chi2 > math.log(n)
+    held_ok = not (best.refit.held_out_after > ho0)
+    if p_best > opts.accept_alpha and better and held_ok:
+        confusable = [c.name for c in refitted[1:]
+                      if c.refit.chi2 - best.refit.chi2 < opts.confusable_dchi2]
+        return best.name, confusable, p_best
+    return "unattributed", [], p_best
+
+
+def _ranking(cands: list[Candidate], chi0: float, n: int) -> list[RankedEffect]:
+    """Candidates by chi^2 (refitted first); scores: relative evidence (BIC weights,
+    equal dimension) over refitted + linear, against 'no effect'."""
+    ok = [c for c in cands if c.error is None]
+    lnn = math.log(n)
+    chi_all = {c.name: c.chi2 for c in ok}
+    ref = min(list(chi_all.values()) + [chi0 + lnn])
+    wts = {k_: math.exp(-0.5 * (v - ref)) for k_, v in chi_all.items()}
+    wsum = sum(wts.values()) + math.exp(-0.5 * (chi0 + lnn - ref))
+    out = []
+    for c in sorted(ok, key=lambda c: (c.refit.chi2 if c.refit is not None else math.inf, c.chi2_linear)):
+        rf = c.refit
+        chi_e = chi_all[c.name]
+        out.append(RankedEffect(
+            name=c.name, magnitude=float(rf.magnitude if rf is not None else c.magnitude_linear),
+            std=None if rf is None else rf.std, unit=c.unit, gap_after=float(math.sqrt(chi_e / n)),
+            score=float(wts[c.name] / wsum), delta_chi2=float(chi0 - chi_e), refitted=rf is not None,
+            held_out_after=None if rf is None else rf.held_out_after, detectable=c.detectable,
+            absorbed_fraction=float(c.absorbed_fraction), bias_in_constants_per_unit=c.bias_per_unit,
+            constants_after=None if rf is None else rf.constants,
+            iterations=None if rf is None else rf.iterations))
+    return out
+
+
+# -------------------------------------------------------------- diagnosis --
+def diagnose(problem: Features, options: GapOptions | None = None,
+             forward: ForwardModel | None = None) -> GapResult:
+    """Gap diagnosis of measured features against the nominal model (see module docstring).
+
+    ``forward`` replaces the default forward model of ``problem`` (e.g. another mesh).
+    """
+    opts = options or GapOptions()
+    _check(problem, opts)
+    fw = forward or ForwardModel(problem)
+    F = GapFit(problem, fw, opts.model_rel_sigma)
+    base = _fit_constants(F, opts)
+    r0, test = base.r0, base.test
+    n, chi0 = len(r0), test["chi2"]
+
+    labels = feature_labels(problem)
+    families = _families(problem, fw, base.p_hat)
+    table0 = group_table(r0, groups(labels, families), opts.alpha)
+    fl = folds(labels)
+    ho0 = held_out(r0, base.J, base.w, base.dtheta, fl)
+
+    cands = _screen_and_refit(problem, F, base, fl, opts)
+    refitted = sorted([c for c in cands if c.refit is not None], key=lambda c: c.refit.chi2)
+    verdict, confusable, p_best = _verdict(refitted, test, ho0, n, opts)
+    chosen = next((c.refit for c in refitted if c.name == verdict), None)
+
+    after_r = chosen.residual if chosen is not None else r0
+    p_hat, names = base.p_hat, F.names
+    gap = GapFigures(
+        before=float(math.sqrt(chi0 / n)), after=float(math.sqrt(float(after_r @ after_r) / n)),
+        held_out_before=ho0, held_out_after=chosen.held_out_after if chosen is not None else ho0,
+        chi2_before=chi0, chi2_after=float(after_r @ after_r), dof=float(test["dof"]), n=n,
+        p_value_before=test["p_value"], p_value_after=p_best if chosen is not None else test["p_value"],
+        threshold_chi2=test["threshold"], false_alarm_rate=opts.alpha, significant=bool(test["significant"]))
+    where = [g for g in table0 if g.significant] if test["significant"] else []
+    return GapResult(
+        gap=gap,
+        where=tuple(g.group for g in where),
+        where_detail=tuple(where),
+        effects=tuple(_ranking(cands, chi0, n)),
+        verdict=verdict,
+        confusable=tuple([verdict] + confusable) if confusable else (),
+        undetectable=tuple(Undetectable(c.name, float(c.absorbed_fraction), c.unit, c.bias_per_unit)
+                           for c in cands if c.error is None and not c.detectable),
+        errors={c.name: c.error for c in cands if c.error is not None},
+        groups=tuple(table0),
+        constants=ConstantsChange(
+            before=p_hat, before_std={n_: float(s_) for n_, s_ in zip(names, base.est.std)},
+            after=chosen.constants if chosen is not None else p_hat,
+            relative_change=({n_: chosen.constants[n_] / p_hat[n_] - 1.0 for n_ in names}
+                             if chosen is not None else {n_: 0.0 for n_ in names})),
+        features=FeatureResiduals(
+            labels=tuple(lb["label"] for lb in labels), modality=tuple(lb["modality"] for lb in labels),
+            set=tuple(lb["set"] for lb in labels), residual_before=r0, residual_after=after_r,
+            sigma=F.sigma, mode_families=None if families is None else tuple(families)),
+        converged=bool(base.est.converged), message=base.est.message)

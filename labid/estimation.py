@@ -1,0 +1,254 @@
+"""The identification problem of a features document: data blocks, defaults, the estimate.
+
+``problem_from_features`` turns a measured-features document (CONTRACT
+section 2, parsed by ``labid.features.parse_features`` into
+``engine.features.Features``) into the data blocks it holds (natural
+frequencies -> plate FE, group velocities -> SAFE); ``run`` chooses the
+parameters to identify and their start (the specimen's nominal constants
+unless given) and runs one of the estimators of :mod:`engine.fit`, with the
+Birge scaling and the data-set consistency check (``engine.fit.checks``).
+The workflow's public face is :mod:`labid.identification`.
+
+Units SI throughout (Pa, Hz, m/s, kg/m^3).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from engine.features import Features
+from engine.fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
+                        nelder_mead_fit)
+from engine.forward import modal_block, wave_block
+from engine.laminate import PhysicsError
+from engine.plate import PlateModel
+
+from .errors import UserError
+from .features import parse_features
+from .specimen import Specimen
+
+__all__ = ["Problem", "problem_from_features", "default_params", "parse_assignments", "start_values", "run",
+           "METHODS"]
+
+METHODS = ("lm", "bayes", "nelder-mead")
+
+
+@dataclass
+class Problem:
+    """Everything needed to estimate: specimen, data blocks and bookkeeping."""
+
+    specimen: Specimen
+    blocks: list[DataBlock]
+    material: str
+    modal_forward: Any = None
+    source: str = "<features>"
+    notes: list[str] = field(default_factory=list)
+    features: Features | None = None
+
+    @property
+    def kinds(self) -> tuple[str, ...]:
+        return tuple(sorted({b.kind for b in self.blocks}))
+
+    @property
+    def nominal(self) -> dict[str, float]:
+        return self.specimen.laminate.materials[self.material].params()
+
+    @property
+    def isotropic(self) -> bool:
+        return self.specimen.laminate.materials[self.material].isotropic
+
+
+# ---------------------------------------------------------------------------
+# the data blocks of a features document
+# ---------------------------------------------------------------------------
+def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str = "<features>",
+                          specimen: Specimen | None = None, material: str | None = None,
+                          modal_model=None) -> Problem:
+    """Data blocks for whatever the features hold (modal, waves or both).
+
+    Accelerometer masses of ``rig.accelerometers`` are added to the plate
+    model as point masses. Wave points with a NaN group velocity (or sigma)
+    are dropped. ``modal_model`` may pass a prebuilt ``PlateModel`` (same specimen).
+    """
+    parsed = parse_features(doc, base_dir, src, specimen=specimen)
+    spec, feats = parsed.specimen, parsed.features
+    notes = list(parsed.notes)
+    mats = spec.laminate.materials
+    if material is None:
+        if len(mats) != 1:
+            raise UserError(f"laminate has materials {sorted(mats)}; expected a single material",
+                            file=src, key="specimen")
+        material = next(iter(mats))
+    blocks: list[DataBlock] = []
+    fwd = None
+    md = feats.modal
+    if md is not None:
+        f, sig = md.frequency_hz, md.sigma_hz
+        if f.size == 0:
+            raise UserError("expected a non-empty list of numbers", file=src, key="modal.frequencies_hz")
+        if modal_model is None:
+            try:
+                modal_model = PlateModel.build(spec.laminate, spec.length, spec.width)
+            except PhysicsError as e:
+                raise UserError(str(e), file=src, key="specimen") from None
+            masses = feats.rig.masses()
+            if masses:
+                modal_model = modal_model.with_point_masses(masses)
+                notes.append(f"modal model includes {len(masses)} accelerometer mass(es)")
+        try:
+            blk, fwd = modal_block(modal_model, f, sig, points=md.points, shapes=md.shapes, material=material)
+        except IdentificationError as e:
+            raise UserError(str(e), file=src, key="modal") from None
+        blocks.append(blk)
+    for i, w in enumerate(feats.waves):
+        where = f"waves[{i}]."
+        fr, cg, sig = w.frequency_hz, w.group_velocity_m_s, w.sigma_m_s
+        if fr.size == 0:
+            raise UserError("expected a non-empty list of numbers", file=src, key=where + "frequency_hz")
+        ok = np.isfinite(fr) & np.isfinite(cg) & np.isfinite(sig)
+        if not ok.all():
+            notes.append(f"{where}: {int((~ok).sum())} point(s) without a velocity dropped")
+        if ok.sum() == 0:
+            continue
+        mode, d = w.mode, w.direction_deg
+        blocks.append(wave_block(spec.laminate, fr[ok], cg[ok], sig[ok], mode=mode, direction_deg=d,
+                                 material=material, name=f"waves[{i}]:{mode}@{d:g}deg"))
+    if not blocks:
+        raise UserError("no modal frequencies and no wave velocities: nothing to identify",
+                        file=src, key="modal/waves")
+    return Problem(spec, blocks, material, fwd, src, notes, replace(feats, material=material))
+
+
+# ---------------------------------------------------------------------------
+# parameters
+# ---------------------------------------------------------------------------
+def default_params(problem: Problem) -> tuple[str, ...]:
+    """What the data can reasonably identify.
+
+    Isotropic: E, G. Orthotropic: the six elastic constants with modal data
+    (alone or combined); waves only: E1, G13, G23 (paper Table 3), plus nu12
+    when a symmetric (S) mode is measured.
+    """
+    if problem.isotropic:
+        return ("E", "G")
+    if "modal" in problem.kinds:
+        return ("E1", "E2", "nu12", "G12", "G13", "G23")
+    names = ["E1", "G13", "G23"]
+    if any(b.kind == "waves" and ":S" in b.name for b in problem.blocks):
+        names.insert(1, "nu12")
+    return tuple(names)
+
+
+def parse_assignments(text: str | None, option: str = "--start") -> dict[str, float]:
+    """'E1=85e9,G13=5.32e9' -> {'E1': 85e9, 'G13': 5.32e9} (UserError on bad syntax)."""
+    out: dict[str, float] = {}
+    if not text:
+        return out
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        name, sep, val = item.partition("=")
+        if not sep:
+            raise UserError(f"item {item!r}: expected NAME=VALUE", key=option)
+        try:
+            out[name.strip()] = float(val)
+        except ValueError:
+            raise UserError(f"value {val!r} of {name.strip()}: expected a number (SI units)", key=option) from None
+    return out
+
+
+def _check_names(problem: Problem, names: Sequence[str], option: str) -> None:
+    allowed = problem.specimen.laminate.materials[problem.material].param_names
+    bad = [n for n in names if n not in allowed]
+    if bad:
+        raise UserError(f"unknown parameter(s) {bad}: expected some of {list(allowed)}", key=option)
+    if len(set(names)) != len(names):
+        raise UserError(f"parameter listed twice in {list(names)}", key=option)
+
+
+def start_values(problem: Problem, names: Sequence[str], start: Mapping[str, float] | None) -> dict[str, float]:
+    """The full start of ``names``: given values, else nominal; checked (UserError on
+    unknown names, non-positive or unphysical values)."""
+    start = dict(start or {})
+    _check_names(problem, list(start), "--start")
+    for n, v in start.items():
+        if not (math.isfinite(v) and v > 0):
+            raise UserError(f"{n} = {v!r}: expected a positive value in SI units (Pa, kg/m^3)", key="--start")
+    unused = set(start) - set(names)
+    if unused:
+        raise UserError(f"start given for {sorted(unused)}, which are not identified "
+                        f"(parameters: {list(names)})", key="--start")
+    nominal = problem.nominal
+    full = {n: float(start.get(n, nominal[n])) for n in names}
+    try:
+        mat = problem.specimen.laminate.materials[problem.material].with_params(**full)
+        mat.check()
+    except PhysicsError as e:
+        raise UserError(f"unphysical start: {e}", key="--start") from None
+    return full
+
+
+# ---------------------------------------------------------------------------
+# estimation
+# ---------------------------------------------------------------------------
+def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
+        *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
+        scale_sigmas: bool = True, consistency: bool = True) -> Estimate:
+    """Estimate ``names`` (default: :func:`default_params`) from ``problem``.
+
+    ``method``: ``lm`` (combined whitened least squares, Levenberg-Marquardt
+    in log-parameters), ``bayes`` (Lai & Ip update, Eq. 20; ``prior`` is the
+    relative prior std, default 0.5) or ``nelder-mead`` (Eq. 29). ``prior``
+    for ``lm``: None (maximum likelihood, default) or the std of log p about
+    the start.
+
+    ``scale_sigmas`` (``lm`` only): a data set (modal, waves) whose chi^2 per
+    point is significantly above 1 (by more than 3 sqrt(2/n)) but below 10 has
+    its sigmas multiplied by sqrt(chi^2/n) (the Birge ratio) and the fit is
+    repeated from the estimate: the stated sigmas were too small for the
+    model/data agreement actually reached, and the uncertainty widens
+    accordingly. Never shrinks sigmas; not applied to poor fits (local minima).
+
+    ``consistency`` (``lm``, several data sets): each data set is also fitted
+    alone (from the combined estimate); when the combined chi^2 exceeds the
+    sum of the separate minima by more than chance allows (chi^2 test with k
+    degrees of freedom, k = combinations every data set constrains, p < 0.05),
+    the data sets disagree beyond their sigmas and a warning names the
+    parameters they pull apart most: the combined std is then optimistic.
+    """
+    names = tuple(names) if names else default_params(problem)
+    _check_names(problem, names, "--params")
+    st = start_values(problem, names, start)
+    if method not in METHODS:
+        raise UserError(f"method {method!r}: expected one of {list(METHODS)}", key="--method")
+    if problem.modal_forward is not None:
+        problem.modal_forward.reset_tracking()
+    try:
+        if method == "lm":
+            est = estimate(problem.blocks, names, st, prior=prior, max_iter=max_iter)
+        elif method == "bayes":
+            est = bayesian_update(problem.blocks, names, st,
+                                  prior_rel_std=0.5 if prior is None else prior, max_iter=max_iter)
+        else:
+            est = nelder_mead_fit(problem.blocks, names, st, prior=prior)
+    except IdentificationError as e:
+        raise UserError(str(e), file=problem.source) from None
+    scale_notes: list[str] = []
+    if scale_sigmas and method == "lm":
+        est, scale_notes = checks.birge_refit(problem.blocks, est, names, st, prior, max_iter)
+    if consistency and method == "lm" and len(problem.kinds) > 1:
+        scale_notes += checks.consistency(problem.blocks, est, names, prior, max_iter)
+    warnings = list(est.warnings) + list(problem.notes) + scale_notes
+    chi2 = sum(r["chi2"] for r in est.residuals.values())
+    n = sum(r["n"] for r in est.residuals.values())
+    if chi2 > 10.0 * n:
+        warnings.append(f"poor fit: chi^2/n = {chi2 / n:.3g} (expected ~1 with the stated sigmas): "
+                        "a local minimum, or a model/data mismatch (see labid diagnose)")
+    if problem.modal_forward is not None:
+        warnings += problem.modal_forward.warnings
+    return replace(est, warnings=tuple(warnings))
