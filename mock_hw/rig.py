@@ -1,13 +1,9 @@
 """The simulated rig: a ``drivers.protocol.Device`` whose records are synthesised.
 
 Vibration shots (``role='hammer'``, ~10 kHz): the plate modes of
-``engine.plate`` (mass-normalised shapes phi) respond to a half-sine hammer
-force F(t) = F0 sin(pi t / T), 0 <= t <= T, at (xh, yh). Each mode is a damped
-oscillator q'' + 2 zeta w q' + w^2 q = phi(xh, yh) F(t), solved in closed form
-(steady sine + free transient, and the same shifted by T, which cancels the
-sine after contact); accelerometer j reads sum_m phi_m(xj, yj) q_m''(t). The
-force channel reads F(t). Rigid-body/suspension modes are left out (they lie
-below the IEPE high-pass).
+``engine.plate`` respond to a half-sine hammer force at (xh, yh)
+(``mock_hw.vibration``). The force channel reads F(t). Rigid-body/suspension
+modes are left out (they lie below the IEPE high-pass).
 
 Wave shots (``role='wave'``, 1-5 MHz): surface strain along the path of an
 infinite plate from a pencil-lead break or a hammer, at each sensor's distance,
@@ -45,6 +41,8 @@ from scipy import signal
 from drivers.protocol import ChannelConfig, NoTrigger, Record, Timing, Trigger
 from engine.forward.effects import ALPHA_FIBRE, ALPHA_ISOTROPIC, ALPHA_MATRIX, EFFECTS
 from engine.laminate import Laminate
+
+from .vibration import half_sine, vibration_signals
 
 OVERSAMPLE = 4
 ROLE_IDS = {"hammer": 0, "wave": 1}
@@ -137,49 +135,6 @@ def effective_laminate(lam: Laminate, effects: Effects) -> Laminate:
 
 
 # -- cached engine results ---------------------------------------------------
-@functools.lru_cache(maxsize=16)
-def plate_modes(lam: Laminate, length: float, width: float, n_modes: int,
-                masses: tuple = (), springs: tuple = (), mesh=None):
-    """(PlateModel, Modes) for the plate with point masses/springs; cached."""
-    from engine.plate import PlateModel
-    model = PlateModel.build(lam, length, width, mesh)
-    if masses:
-        model = model.with_point_masses(masses)
-    if springs:
-        model = model.with_springs(springs)
-    return model, model.solve(n_modes)
-
-
-def half_sine(t: np.ndarray, contact_s: float) -> np.ndarray:
-    """Unit-peak half-sine force sin(pi t / T) on 0 <= t <= T, else 0."""
-    return np.where((t >= 0) & (t <= contact_s), np.sin(np.pi * np.clip(t, 0, None) / contact_s), 0.0)
-
-
-def modal_acceleration(t: np.ndarray, omega: np.ndarray, zeta: np.ndarray, contact_s: float) -> np.ndarray:
-    """(n_modes, n_t) q'' of q'' + 2 zeta w q' + w^2 q = sin(pi t/T) [0 <= t <= T], q(0)=q'(0)=0.
-
-    Exact closed form (steady sine + free transient, superposed with the same
-    shifted by T). omega in rad/s, zeta < 1, t in s.
-    """
-    W = np.pi / contact_s
-    w = np.asarray(omega, float)[:, None]
-    z = np.asarray(zeta, float)[:, None]
-    H = 1.0 / (w**2 - W**2 + 2j * z * w * W)
-    sig = -z * w
-    wd = w * np.sqrt(1.0 - z**2)
-    c1 = -H.imag
-    c2 = (-W * H.real - sig * c1) / wd
-    s = sig + 1j * wd
-    C = (c1 - 1j * c2) * s**2
-
-    def g(tt):
-        tp = np.clip(tt, 0.0, None)
-        a = -W**2 * (H * np.exp(1j * W * tp)).imag + (C * np.exp(s * tp)).real
-        return np.where(tt >= 0, a, 0.0)
-
-    return g(t[None, :]) + g(t[None, :] - contact_s)
-
-
 def _butter_or_bessel(kind: str, order: int, cutoff_hz: float, fs_hz: float):
     if kind == "none":
         return None, 0.0
@@ -368,41 +323,13 @@ def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple
     lam = effective_laminate(specimen.laminate, effects)
     raw: dict[str, np.ndarray] = {}
     if role == "hammer":
-        raw = _vibration(rig, specimen, lam, effects, channels, t)
+        raw = vibration_signals(rig, specimen, lam, effects, channels, t)
     else:
         raw = _waves(rig, lam, effects, channels, fs, timing.samples, lead, nf)
     sos, gd = _butter_or_bessel(spec.antialias.kind, spec.antialias.order,
                                 spec.antialias.cutoff_ratio * fs, fsf)
     fine = {k: (signal.sosfilt(sos, v) if sos is not None else v) for k, v in raw.items()}
     return _Template(fine, lead, fsf, gd)
-
-
-def _vibration(rig, specimen, lam, effects, channels, t) -> dict[str, np.ndarray]:
-    sim, ham = rig.sim, rig.hammer
-    accs = [c for c in channels if c.kind == "accelerometer"]
-    # the declared sensor masses are always on the plate (the model knows them);
-    # the sensor_mass effect is mass beyond what the rig file declares
-    masses = tuple((c.x, c.y, c.mass_kg + effects.sensor_mass) for c in accs
-                   if c.mass_kg + effects.sensor_mass > 0.0)
-    springs = tuple((x, y, effects.support_stiffness) for x, y in rig.supports) \
-        if effects.support_stiffness else ()
-    out: dict[str, np.ndarray] = {}
-    for c in channels:
-        if c.kind == "force":
-            out[c.name] = c.sensitivity * half_sine(t, ham.contact_s)
-    if accs:
-        model, modes = plate_modes(lam, specimen.length, specimen.width, sim.n_modes, masses, springs)
-        pts = np.array([[ham.x, ham.y]] + [[c.x, c.y] for c in accs])
-        phi = model.shapes_at(modes, pts)                    # (n_modes, 1 + n_acc)
-        omega = np.sqrt(np.maximum(modes.omega2, 0.0))
-        zeta = np.full(omega.shape, sim.modal_damping + effects.viscoelastic / 2.0)
-        acc = np.zeros((len(accs), t.size))
-        for lo in range(0, omega.size, 10):                  # bounded memory
-            q = modal_acceleration(t, omega[lo:lo + 10], zeta[lo:lo + 10], ham.contact_s)
-            acc += (phi[lo:lo + 10, 1:] * phi[lo:lo + 10, :1]).T @ q
-        for j, c in enumerate(accs):
-            out[c.name] = c.sensitivity * acc[j]
-    return out
 
 
 def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.ndarray]:

@@ -98,3 +98,33 @@ def test_front_ends_reach_run_files_and_engine_through_services():
         if m.startswith(FRONT_ENDS):
             bad = [d for d in ds if d.startswith(("labid.store", "engine", "mock_hw", "drivers"))]
             assert not bad, f"{m} imports {bad}; expected labid.services"
+
+
+def test_no_import_cycle_anywhere():
+    assert cycles(import_graph()) == []
+
+
+def test_mock_hw_imports_engine_and_drivers_only():
+    for m, ds in import_graph().items():
+        if m.startswith("mock_hw"):
+            assert all(d.startswith(("engine", "drivers", "mock_hw")) for d in ds), (m, ds)
+
+
+def test_no_private_name_is_imported_from_another_module():
+    bad = []
+    for m, f in modules().items():
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                bad += [(m, node.module, a.name) for a in node.names
+                        if a.name.startswith("_") and not a.name.startswith("__")]
+    assert bad == []
+
+
+def test_long_modules_say_why_at_their_top():
+    """A module over 500 lines says why in its first 15 lines ('... 500 lines ...')."""
+    long = []
+    for m, f in modules().items():
+        lines = f.read_text().splitlines()
+        if len(lines) > 500 and "500 lines" not in "\n".join(lines[:15]):
+            long.append((m, len(lines)))
+    assert long == []

@@ -12,8 +12,8 @@ from engine.plate import natural_frequencies
 from labid.acquisition import double_hit
 from labid.rig import load_rig, read_rig_text, rig_from_text
 from labid.specimen import load_specimen
-from mock_hw.rig import (ALPHA_ISOTROPIC, Effects, SimulatedDevice, effective_laminate,
-                         half_sine, modal_acceleration)
+from mock_hw.rig import ALPHA_ISOTROPIC, Effects, SimulatedDevice, effective_laminate
+from mock_hw.vibration import half_sine, modal_acceleration
 
 
 @pytest.fixture(scope="module")
