@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import sys
 
+from engine.gap import GapOptions
+
 from . import services
 from .cmdutil import add_json_option
+from .diagnosis import load_features, plot_gap, run_diagnosis
 from .errors import UserError
 
 
@@ -29,10 +32,6 @@ def register(sub) -> None:
 
 
 def run(args) -> dict:
-    from engine.gap import GapOptions
-
-    from .diagnosis import load_features, plot_gap, run_diagnosis
-
     if not 0.0 < args.alpha < 0.5:
         raise UserError(f"value {args.alpha!r}: expected a false-alarm rate in (0, 0.5)", key="--alpha")
     doc, base = load_features(args.features)
