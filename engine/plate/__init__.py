@@ -14,10 +14,11 @@ Modules (each readable alone):
 * :mod:`.sparse` -- the fixed sparse pattern, element scatter and eigen blocks
   (the measured reason for the hand-made pattern is in its docstring);
 * :mod:`.model` -- ``PlateModel`` (precomputed parts, solve per parameter set,
-  point masses, springs, stiffness loss, sensitivities) and ``Modes``.
+  point masses, springs, stiffness loss, sensitivities) and ``Modes``;
+* :mod:`.labels` -- mode family labels (m, n) from the shapes (``mode_families``).
 
 Public API (re-exported here): ``PlateModel``, ``Modes``, ``Mesh``, ``FEError``,
-``natural_frequencies``, ``coefficients_from_abdh``, ``DEFAULT_ELEMENTS``,
+``natural_frequencies``, ``mode_families``, ``coefficients_from_abdh``, ``DEFAULT_ELEMENTS``,
 ``EDGE_LAYER``, ``COEF_NAMES``, ``Q_NAMES``, ``NODE_DOF``.
 
 Package-internal (public names shared by the modules of this package; not for
@@ -27,9 +28,10 @@ other layers): ``element.shape_2d``, ``element.combo_scales``,
 ``sparse.Block``, ``sparse.point_matrix``.
 """
 from .element import NODE_DOF, FEError
+from .labels import mode_families
 from .mesh import DEFAULT_ELEMENTS, EDGE_LAYER, Mesh
 from .model import Modes, PlateModel, natural_frequencies
 from .stiffness import COEF_NAMES, Q_NAMES, coefficients_from_abdh
 
-__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "coefficients_from_abdh",
+__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "mode_families", "coefficients_from_abdh",
            "DEFAULT_ELEMENTS", "EDGE_LAYER", "COEF_NAMES", "Q_NAMES", "NODE_DOF", "FEError"]
