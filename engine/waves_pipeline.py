@@ -538,11 +538,16 @@ def _arrivals(d: _Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wav
     A = np.abs(W)
     t = (np.arange(A.shape[1]) - pre) / fs
 
-    def rng(p: Packet, i: int) -> tuple[float, float]:
+    ranges = {}
+    for p in pk:     # where each packet may lie on the record axis: (earliest, latest) per frequency
         mu = d.margin.get(p.mode, d.settings.gate_margin)
         sc = d.scale.get(p.mode)
-        dl = p.delay_s[i] / (sc[i] if sc is not None and np.isfinite(sc[i]) else 1.0)
-        return lo_s[i] + dl / (1 + mu), hi_s[i] + dl / (1 - mu)
+        dl = p.delay_s / (np.where(np.isfinite(sc), sc, 1.0) if sc is not None else 1.0)
+        ranges[id(p)] = (lo_s + dl / (1 + mu), hi_s + dl / (1 - mu))
+
+    def rng(p: Packet, i: int) -> tuple[float, float]:
+        r = ranges[id(p)]
+        return r[0][i], r[1][i]
 
     for i in range(nf):
         if not np.isfinite(target.delay_s[i]) or not np.isfinite(lo_s[i]):
@@ -632,10 +637,10 @@ def _arrivals(d: _Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wav
                 k0, k1 = max(k0 - 1, 0), min(k1 + 1, row.size)
                 if k1 - k0 < 1:
                     continue
-                a = row[k0:k1].astype(float)
-                da = np.abs(np.gradient(row.astype(float), p.model_step_s)[k0:k1]) if row.size > 1 else a * 0
-                rho = float(a.max()) / peak_t
-                items.append((rho, (st * st * float(da.max()) + 0.7 * st * float(a.max())) / peak_t,
+                amax = float(row[k0:k1].max())
+                damax = float(p.model_dw[i, k0:k1].max())
+                rho = amax / peak_t
+                items.append((rho, (st * st * damax + 0.7 * st * amax) / peak_t,
                               f"{p.mode} {p.path}", (p.mode, round(p.length_m, 3))))
                 continue
             g = max(0.0, p_lo - tc, tc - p_hi)

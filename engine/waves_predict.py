@@ -93,6 +93,7 @@ class Packet:
     spread_s: np.ndarray
     model_step_s: float = 0.0                 # the model scalogram's time step (0: none)
     model_w: np.ndarray | None = None         # |W| of the packet alone (nf, m), t = k step from onset
+    model_dw: np.ndarray | None = None        # |d|W|/dt| of it (1/s)
 
 
 def _half_turn(direction_deg: float) -> float:
@@ -162,18 +163,25 @@ def _along(lam: Laminate, direction: float, freqs: tuple, length_m: float, sourc
     return {mode: (vel[mode][1], np.abs(h)) for mode, h in H.items() if mode in vel}
 
 
-def _model_records(lam, direction, length_m, source, sensor_face, sensor_length_m, top, fs_hz, n):
-    """{mode: strain record of that mode alone along the path} (n samples at fs_hz, t = 0 at
-    the onset; unit force; the source spectrum tapered over the top 10 % below ``top``)."""
+@functools.lru_cache(maxsize=8)
+def _model_grid(source: SourceModel, top: float, fs_hz: float, n: int):
+    """(FFT length, band mask, band frequencies, tapered source spectrum) of the model records."""
     n_fft = next_fast_len(8 * n, real=True)
     fg = np.fft.rfftfreq(n_fft, 1.0 / fs_hz)
     band = (fg > 0) & (fg <= top)
     fb = fg[band]
     taper = np.where(fb <= 0.9 * top, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * top) / (0.1 * top))))
-    F = source.force().spectrum(fb) * taper
+    return n_fft, band, fb, source.force().spectrum(fb) * taper
+
+
+def _model_records(lam, direction, length_m, source, sensor_face, sensor_length_m, top, fs_hz, n):
+    """{mode: strain record of that mode alone along the path} (n samples at fs_hz, t = 0 at
+    the onset; unit force; the source spectrum tapered over the top 10 % below ``top``)."""
+    n_fft, band, fb, F = _model_grid(source, float(top), float(fs_hz), int(n))
+    fg_size = n_fft // 2 + 1
     out = {}
     for mode, h in _transfer(lam, direction, fb, length_m, source, sensor_face, sensor_length_m, top).items():
-        Y = np.zeros(fg.shape, complex)
+        Y = np.zeros(fg_size, complex)
         Y[band] = np.conj(h) * F
         out[mode] = np.fft.irfft(Y, n_fft)[:n] * fs_hz
     return out
@@ -207,7 +215,9 @@ def predict_packets(lam: Laminate, source: SourceModel, source_xy, sensor_xy, pl
             for mode, y in _model_records(lam, float(direction), float(p.length_m), source, sensor_face,
                                           float(sensor_length_m), top, fs_hz, n).items():
                 W, step = waves.cwt_decimated(y, fs_hz, f, wavelet)
-                models[mode] = (step / fs_hz, np.abs(W).astype(np.float32))
+                A = np.abs(W)
+                models[mode] = (step / fs_hz, A.astype(np.float32),
+                                np.abs(np.gradient(A, step / fs_hz, axis=1)).astype(np.float32))
         for mode, (cg, h) in _along(lam, float(direction), key, float(p.length_m), source, sensor_face,
                                     float(sensor_length_m), top).items():
             ok = np.isfinite(cg) & (cg > 0)
@@ -218,8 +228,8 @@ def predict_packets(lam: Laminate, source: SourceModel, source_xy, sensor_xy, pl
             beta = p.length_m * np.gradient(slow, w) if f.size > 1 else np.zeros(f.size)
             spread = np.sqrt(spread0 ** 2 + (beta / spread0) ** 2)
             amp = np.where(ok, h * np.sqrt(spread0 / spread), np.nan)
-            step, mw = models.get(mode, (0.0, None))
-            out.append(Packet(mode, p.name, p.length_m, delay, amp, spread, step, mw))
+            step, mw, mdw = models.get(mode, (0.0, None, None))
+            out.append(Packet(mode, p.name, p.length_m, delay, amp, spread, step, mw, mdw))
     if out:
         top = np.nanmax([np.nanmax(pk.amplitude) for pk in out])
         out = [pk for pk in out if np.nanmax(pk.amplitude) >= min_level * top]
