@@ -320,7 +320,7 @@ def analysis_band(laminate: Laminate, fs_hz: float, settings: WaveSettings = Wav
             what = f"where the direct packets stand {-settings.band_db:g} dB above the noise"
         lo, hi = (max(fmin, got[0]), min(fmax, got[1])) if got else (0.0, 0.0)
         if not hi > lo * 1.02:
-            fix = f"set --wave-band {energy[0]:.3g},{energy[1]:.3g}"
+            fix = f"set --wave-band {energy[0] / 1e3:.3g}e3,{energy[1] / 1e3:.3g}e3"
             if not narrow:
                 fix += " or describe the source as a tone_burst (or pzt) in the rig file"
             return Band(np.zeros(0), tuple(notes),
