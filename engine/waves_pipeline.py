@@ -565,15 +565,20 @@ def _arrivals(d: _Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wav
         if peaks.size:
             peaks = peaks[A[i, peaks] >= 0.05 * A[i, peaks].max()]
         best = None
+        def z(lo_p, hi_p, sp, tc):
+            """Distance of tc from a packet's nominal place, in its own uncertainty (the
+            half-width of where it may lie plus its width)."""
+            return abs(tc - 0.5 * (lo_p + hi_p)) / (0.5 * (hi_p - lo_p) + sp)
+
         for k in peaks:
             tc = t[k]
-            dist_t = max(0.0, a_lo - tc, tc - a_hi) / sig
+            z_t = z(a_lo, a_hi, sig, tc)
             mine = True
             for p in pk:
                 if p is target or not np.isfinite(p.delay_s[i]):
                     continue
                 p_lo, p_hi = rng(p, i)
-                if max(0.0, p_lo - tc, tc - p_hi) / p.spread_s[i] < dist_t:
+                if z(p_lo, p_hi, p.spread_s[i], tc) < z_t:
                     mine = False
                     break
             if mine and (best is None or A[i, k] > A[i, best]):
