@@ -310,3 +310,23 @@ def test_the_excitation_channel_and_the_reflections_of_the_simulated_rig(al3):
     first = t[np.argmax(env > 0.5 * env[early].max())]
     t_s0 = 1.0403 / safe.group_velocity(al3.laminate, [180e3], "S0")[0]
     assert t_s0 < first < t_s0 + 5 / 180e3 + 3e-6
+
+
+def test_wave_shots_are_stored_as_float32_without_losing_an_adc_code(al3, tmp_path):
+    """A 12-bit wave device: the run file holds float32 samples; read back (as float64)
+    every sample divided by the ADC step is its integer code (half a step would be lost
+    only beyond 23 bits)."""
+    import h5py
+    from labid.store import RunStore
+    r = rig()
+    with RunStore(tmp_path / "q.h5") as st:
+        AcquisitionSession(r, al3, st, seed=1).run(n_hits=0, n_waves=1)
+        rec = st.shots("wave")[0]
+    with h5py.File(tmp_path / "q.h5", "r") as f:
+        assert f["shots/wave/s2"].dtype == np.float32
+    for c in rec.channels:
+        lsb = 2 * c.range_v / 2 ** r.device("wave").adc_bits
+        codes = rec.data[c.name] / lsb
+        assert rec.data[c.name].dtype == np.float64
+        np.testing.assert_allclose(codes, np.rint(codes), atol=1e-3)
+        assert np.abs(codes).max() > 100                    # a real signal, not zeros
