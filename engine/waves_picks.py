@@ -33,8 +33,9 @@ class WaveSettings:
     """Choices of the wave measurement (None: automatic).
 
     wavelet: (B, C) of the complex Morlet; default: the candidate giving the most
-        independent points (module docstring, step 6).
-    band_hz: (fmin, fmax) of the CWT grid; default from the source and the records (step 1).
+        independent points (engine.waves_pipeline, step 6).
+    band_hz: (fmin, fmax) of the CWT grid; default from the source and the records
+        (engine.waves_band).
     n_freqs: points of the CWT grid.
     assign: 'instantaneous' (reassigned, bias-corrected) or 'nominal' (the paper).
     min_snr_db: reject arrivals weaker than this over the pre-trigger noise.
