@@ -59,6 +59,34 @@ def double_hit(force: np.ndarray, rate_hz: float, min_gap_s: float = 5e-4,
     return bool(np.any(np.diff(above) > min_gap_s * rate_hz))
 
 
+def sample_dtype(spec) -> str:
+    """Sample dtype of a device's shot tables: float32 for the (long, MHz) wave records of
+    an ADC of up to 23 bits, float64 otherwise. A float32 value v differs from the float64
+    one by at most |v| 2^-24 <= range 2^-24, less than half the ADC step range 2^(1 - bits)
+    for bits <= 23: the code a sample came from is recovered exactly (``round(v / step)``)."""
+    return "f4" if spec.role == "wave" and spec.adc_bits <= 23 else "f8"
+
+
+def merge_acquisitions(records: list[Record], groups: tuple[tuple[str, ...], ...], spec) -> Record:
+    """One shot from the records of separate acquisitions on a common trigger: each
+    channel from the acquisition that records it, in the device's channel order; the
+    meta of the first, plus per acquisition its channels and the device's own meta
+    (shot index, simulated onset)."""
+    data, over = {}, {}
+    for rec, g in zip(records, groups):
+        for name in g:
+            data[name] = rec.data[name]
+            over[name] = rec.overload.get(name, False)
+    keep = ("shot_index", "sim_onset_s", "sim_force_peak_n")
+    meta = dict(records[0].meta)
+    if "shot_index" in records[-1].meta:          # the last device read (a resumed run continues after it)
+        meta["shot_index"] = records[-1].meta["shot_index"]
+    meta["acquisitions"] = [{"channels": list(g), "timestamp": r.timestamp,
+                             **{k: r.meta[k] for k in keep if k in r.meta}} for r, g in zip(records, groups)]
+    return Record(data=data, channels=tuple(spec.channels), timing=spec.timing, trigger=spec.trigger,
+                  overload=over, timestamp=records[0].timestamp, backend=records[0].backend, meta=meta)
+
+
 class AcquisitionSession:
     """One acquisition session on ``rig`` for ``specimen``, stored in ``store``.
 
@@ -132,6 +160,25 @@ class AcquisitionSession:
                     return f"double hit on {c.name}"
         return None
 
+    def _read(self, dev, spec) -> Record:
+        """One record of the device; a device whose channels are split into separate
+        acquisitions (rig ``acquisition`` keys) records each on the common trigger and
+        the records are merged (``merge_acquisitions``)."""
+        groups = spec.acquisitions
+        if len(groups) <= 1:
+            dev.arm()
+            return dev.read(spec.trigger_timeout_s)
+        recs = []
+        try:
+            for g in groups:
+                chans = tuple(c for c in spec.channels if c.name in g or c.name == spec.trigger.channel)
+                dev.configure(chans, spec.timing, spec.trigger)
+                dev.arm()
+                recs.append(dev.read(spec.trigger_timeout_s))
+        finally:
+            dev.configure(spec.channels, spec.timing, spec.trigger)
+        return merge_acquisitions(recs, groups, spec)
+
     def shoot(self, kind: str, progress: Progress | None = None, index: int = 0,
               total: int = 0) -> str | None:
         """Record one accepted shot of ``kind``; returns its name, None after giving up."""
@@ -139,8 +186,7 @@ class AcquisitionSession:
         report = progress or (lambda ev: None)
         for attempt in range(self.rig.max_retries + 1):
             try:
-                dev.arm()
-                rec = dev.read(spec.trigger_timeout_s)
+                rec = self._read(dev, spec)
             except NoTrigger as e:
                 report(dict(kind=kind, index=index, total=total, status="no trigger",
                             attempt=attempt, message=str(e)))
@@ -198,7 +244,7 @@ class AcquisitionSession:
                     continue
                 spec = self.rig.device(kind)
                 self.device(kind)
-                self.store.declare(kind, spec.channels, spec.timing, spec.trigger)
+                self.store.declare(kind, spec.channels, spec.timing, spec.trigger, sample_dtype(spec))
                 for i in range(want[kind]):
                     if stop():
                         interrupted = True

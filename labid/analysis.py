@@ -30,7 +30,9 @@ import numpy as np
 
 from drivers.protocol import Record
 from engine import modal, waves, waves_pipeline
+from engine.safe import ply_stiffness
 from engine.waves_pipeline import WaveSettings, default_wavelet
+from engine.waves_predict import SourceModel
 
 from .errors import UserError
 from .features import features_text, validate_features
@@ -51,9 +53,9 @@ class AnalysisSettings:
     force_window_s: force window length after the trigger (H1 only).
     indicator: 'sum' or 'cmif'.
     wavelet, wave_band_hz, n_wave_freqs, assign, min_wave_snr_db, gate_margin,
-        echo_margin, min_wave_points, report_s0: the wave choices, with the defaults and
+        leak_db, max_bias, min_wave_points, report_s0: the wave choices, with the defaults and
         meaning of ``engine.waves_pipeline.WaveSettings`` (wavelet, band_hz, n_freqs,
-        assign, min_snr_db, gate_margin, echo_margin, min_points, report_s0).
+        assign, min_snr_db, gate_margin, leak_db, max_bias, min_points, report_s0).
     """
 
     modal_fmax_hz: float | None = None
@@ -67,7 +69,8 @@ class AnalysisSettings:
     assign: str = WaveSettings.assign
     min_wave_snr_db: float = WaveSettings.min_snr_db
     gate_margin: float = WaveSettings.gate_margin
-    echo_margin: float = WaveSettings.echo_margin
+    leak_db: float = WaveSettings.leak_db
+    max_bias: float = WaveSettings.max_bias
     min_wave_points: int = WaveSettings.min_points
     report_s0: bool = WaveSettings.report_s0
 
@@ -82,6 +85,9 @@ class Analysis:
     curves: dict[str, waves.GroupVelocity] = field(default_factory=dict)
     arrivals: dict[str, waves.Arrivals] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    wave_band_hz: tuple[float, float] | None = None
+    dropped: dict[str, dict[str, int]] = field(default_factory=dict)
+    no_velocity: str = ""
 
 
 # --------------------------------------------------------------------------- modal
@@ -167,61 +173,121 @@ def _wave_settings(settings: AnalysisSettings) -> WaveSettings:
     """The wave part of the analysis settings, for ``engine.waves_pipeline``."""
     return WaveSettings(wavelet=settings.wavelet, band_hz=settings.wave_band_hz, n_freqs=settings.n_wave_freqs,
                         assign=settings.assign, min_snr_db=settings.min_wave_snr_db,
-                        gate_margin=settings.gate_margin, echo_margin=settings.echo_margin,
+                        gate_margin=settings.gate_margin, leak_db=settings.leak_db, max_bias=settings.max_bias,
                         min_points=settings.min_wave_points, report_s0=settings.report_s0)
+
+
+def source_model(src) -> SourceModel:
+    """What the analysis knows of a rig's wave source (``labid.rig.Source``)."""
+    if src.kind in ("tone_burst", "pzt"):
+        b = src.burst
+        kw = dict(duration_s=b.duration_s, frequency_hz=b.frequency_hz, cycles=b.cycles, window=b.window)
+        if src.kind == "pzt":
+            faces = ((("top", 1.0), ("bottom", 1.0 if src.pair == "symmetric" else -1.0)) if src.pair
+                     else ((src.face, 1.0),))
+            return SourceModel("pzt", load="pin", radius_m=src.diameter_m / 2, faces=faces, electrical=True, **kw)
+        return SourceModel("tone_burst", electrical=True, **kw)
+    if src.kind == "hammer":
+        return SourceModel("hammer", duration_s=src.contact_s)
+    return SourceModel("pencil", duration_s=src.rise_s)
+
+
+def _source_channel(rig: Rig, r0: Record):
+    """The channel recording the wave source: the rig's ``wave_source.channel``, else the
+    first force channel of the wave records."""
+    names = [c.name for c in r0.channels]
+    if rig.wave_source is not None and rig.wave_source.channel in names:
+        return r0.channel(rig.wave_source.channel)
+    return next((c for c in r0.channels if c.kind == "force"), None)
 
 
 def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
                   settings: AnalysisSettings = AnalysisSettings(), notes: list[str] | None = None):
-    """(list of wave curve dicts, curves, arrivals, extra rig info) from wave shots.
+    """(list of wave curve dicts, curves, arrivals, extra rig info, info) from wave shots;
+    info: the band used ('band_hz'), the drop counts per curve ('dropped'), or why there
+    is no velocity ('empty').
 
-    The records, the rig's wave sensors and the specimen go through the wave-feature
-    method of ``engine.waves_pipeline`` (band, gates, wavelet choice, S0, shots and
-    independent points are described there); overloaded shots are left out here.
+    The records, the rig's wave sensors, its source and the specimen go through the
+    wave-feature method of ``engine.waves_pipeline`` (band, packets, picks, checks, shots
+    and independent points are described there); overloaded shots are left out here.
     """
     notes = notes if notes is not None else []
     if not records:
-        return [], {}, {}, {}
+        return [], {}, {}, {}, {}
     r0 = records[0]
     fs = r0.timing.rate_hz
     pre = r0.timing.pretrigger
     ws_settings = _wave_settings(settings)
     sensors = [c for c in r0.channels if rig.wave_sensor(c.name) is not None]
-    force = next((c for c in r0.channels if c.kind == "force"), None)
+    force = _source_channel(rig, r0)
+    source = source_model(rig.wave_source) if rig.wave_source is not None else SourceModel()
+    far = max(sensors, key=lambda c: rig.wave_sensor(c.name).distance_m) if sensors else None
+    # the far sensor's record from the first possible arrival on: the direct packets
+    rec_far = None
+    if far is not None:
+        c_max = _fastest_bulk(specimen)
+        k0 = pre + int(rig.wave_sensor(far.name).distance_m / c_max * fs)
+        rec_far = r0.scaled(far.name)[min(k0, r0.timing.samples - 16):]
     try:
-        freqs, band_notes = waves_pipeline.analysis_band(
-            specimen.laminate, fs, ws_settings, r0.scaled(force.name) if force is not None else None, pre)
+        band = waves_pipeline.analysis_band(
+            specimen.laminate, fs, ws_settings,
+            r0.scaled(force.name) if force is not None and force.kind == "force" else None, pre,
+            source=source, record=rec_far,
+            noise=r0.scaled(far.name)[:int(0.8 * pre)] if far is not None and pre >= 80 else None)
     except waves.WaveError as e:
         raise UserError(str(e), key="wave band") from None
-    notes.extend(band_notes)
+    notes.extend(band.notes)
     if not sensors:
         notes.append("wave shots hold no sensor with a distance (rig: distance_m): no velocities")
-        return [], {}, {}, {}
+        return [], {}, {}, {}, {}
+    if band.empty:
+        notes.append(band.empty)
+        return [], {}, {}, {}, {"empty": band.empty}
+    freqs = band.freqs
     names = [c.name for c in sensors] + ([force.name] if force else [])
     recs = _usable(records, names, notes, "wave")
     if not recs:
-        return [], {}, {}, {}
+        return [], {}, {}, {}, {}
     trig = rig.wave_sensor(r0.trigger.channel) if r0.trigger is not None else None
+    acq = rig.device("wave").acquisitions if rig.device("wave") is not None else ()
+    if len(acq) > 1:
+        notes.append(f"wave shots combine {len(acq)} acquisitions on a common trigger "
+                     f"({r0.trigger.channel if r0.trigger else '?'}); delays across them are good to one "
+                     "sample period")
+
+    def sensor(c):
+        ws = rig.wave_sensor(c.name)
+        return waves_pipeline.Sensor(ws.channel, ws.distance_m, ws.direction_deg, ws.length_m,
+                                     _sensor_xy(rig, ws.channel, r0), ws.face, ws.highpass_hz,
+                                     ws.resonance_hz, ws.resonance_q)
+
     setup = waves_pipeline.WaveSetup(
         laminate=specimen.laminate, plate_size_m=(specimen.length, specimen.width),
         source_xy=(rig.wave_source.x, rig.wave_source.y), fs_hz=fs, pretrigger=pre,
-        sensors=tuple(waves_pipeline.Sensor(ws.channel, ws.distance_m, ws.direction_deg, ws.length_m,
-                                            _sensor_xy(rig, ws.channel, r0))
-                      for ws in (rig.wave_sensor(c.name) for c in sensors)),
+        sensors=tuple(sensor(c) for c in sensors),
         force_channel=force.name if force is not None else None,
-        trigger_distance_m=trig.distance_m if trig is not None else None)
+        trigger_distance_m=trig.distance_m if trig is not None else None, source=source)
     shots = [{name: rec.scaled(name) for name in names} for rec in recs]
     res = waves_pipeline.measure_waves(setup, shots, freqs, ws_settings)
     notes.extend(res.notes)
     out = [{"mode": c.mode, "direction_deg": float(c.direction_deg),
             "frequency_hz": [float(f) for f in c.frequency_hz],
             "group_velocity_m_s": [float(v) for v in c.group_velocity_m_s],
-            "sigma_m_s": [float(s) for s in c.sigma_m_s]} for c in res.features]
+            "sigma_m_s": [float(s) for s in c.sigma_m_s],
+            "dropped": {k: int(v) for k, v in c.dropped.items()}} for c in res.features]
     extra: dict[str, Any] = {}
     if res.wave_path_m is not None:
         extra["wave_path_m"] = res.wave_path_m
         extra["sensor_length_m"] = res.sensor_length_m
-    return out, dict(res.curves), dict(res.arrivals), extra
+    info = {"band_hz": [float(freqs[0]), float(freqs[-1])], "dropped": {k: dict(v) for k, v in res.dropped.items()}}
+    return out, dict(res.curves), dict(res.arrivals), extra, info
+
+
+def _fastest_bulk(specimen: Specimen) -> float:
+    """1.2 x the fastest bulk wave speed of the specimen's plies (m/s): nothing arrives sooner."""
+    lam = specimen.laminate
+    return 1.2 * max(float(np.sqrt(np.max(np.diag(C)[:3]) / p.material.density))
+                     for p, C in zip(lam.plies, ply_stiffness(lam, 0.0)))
 
 
 # --------------------------------------------------------------------------- run
@@ -257,7 +323,7 @@ def analyze_store(store: RunStore, settings: AnalysisSettings = AnalysisSettings
         raise UserError("the run holds no hammer or wave shots; expected shots recorded by labid acquire",
                         file=src, key="shots")
     mfeat, spectrum, peaks = modal_features(hammer, settings, notes)
-    wfeat, curves, arrivals, extra = wave_features(wave, rig, specimen, settings, notes)
+    wfeat, curves, arrivals, extra, winfo = wave_features(wave, rig, specimen, settings, notes)
     doc: dict[str, Any] = {"specimen": spec_doc}
     if mfeat:
         doc["modal"] = mfeat
@@ -265,7 +331,11 @@ def analyze_store(store: RunStore, settings: AnalysisSettings = AnalysisSettings
         doc["waves"] = wfeat
     doc["rig"] = _rig_section(rig, extra)
     doc["analysis"] = {"run": Path(src).name, "notes": notes}
-    return Analysis(validate_features(doc, src), spectrum, peaks, curves, arrivals, notes)
+    if winfo.get("dropped"):
+        doc["analysis"]["dropped"] = winfo["dropped"]
+    band = tuple(winfo["band_hz"]) if winfo.get("band_hz") else None
+    return Analysis(validate_features(doc, src), spectrum, peaks, curves, arrivals, notes, band,
+                    winfo.get("dropped", {}), winfo.get("empty", ""))
 
 
 def analysis_results(an: Analysis, text: str, settings: AnalysisSettings) -> dict:
@@ -290,6 +360,8 @@ def analysis_results(an: Analysis, text: str, settings: AnalysisSettings) -> dic
                            "sigma_s": a.sigma_s[a.valid], "channel_curve": key,
                            "wavelet": a.wavelet.name}
     s = asdict(settings)
+    if an.wave_band_hz and not settings.wave_band_hz:
+        s["wave_band_hz"] = an.wave_band_hz          # the band the analysis chose (the panel shows it)
     res["settings"] = {k: ("none" if v is None else (list(v) if isinstance(v, tuple) else v)) for k, v in s.items()}
     return res
 

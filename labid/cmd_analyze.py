@@ -36,7 +36,9 @@ def register(sub) -> None:
                    help="assign arrivals to the nominal wavelet frequency, as in the paper "
                         "(default: reassigned and bias-corrected, docs/wavelet-bias.md)")
     p.add_argument("--with-s0", action="store_true",
-                   help="put the S0 group velocities in the features too (always stored in the run)")
+                   help="(default now) S0 group velocities go into the features whenever measured")
+    p.add_argument("--without-s0", action="store_true",
+                   help="keep the S0 group velocities out of the features (always stored in the run)")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -63,7 +65,8 @@ def run(args) -> dict:
     settings = AnalysisSettings(
         modal_fmax_hz=args.modal_fmax, exp_tau_s=args.exp_window,
         wavelet=_pair(args.wavelet, "--wavelet") if args.wavelet else None,
-        wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous", report_s0=args.with_s0)
+        wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous",
+        report_s0=not args.without_s0)
     feats = services.run_analysis(args.run, settings, out=args.out).features
     if getattr(args, "json", None) != "-":
         m = feats.get("modal") or {}
@@ -71,6 +74,11 @@ def run(args) -> dict:
             sys.stdout.write(f"peak {f:12.4f} Hz  damping {z:.4%}\n")
         for w in feats.get("waves", []):
             fr = w["frequency_hz"]
+            dropped = ", ".join(f"{k} x{n}" for k, n in sorted(w.get("dropped", {}).items(), key=lambda t: -t[1]))
             sys.stdout.write(f"{w['mode']} {w['direction_deg']:g} deg: {len(fr)} velocities, "
-                             f"{fr[0] / 1e3:.3g}-{fr[-1] / 1e3:.3g} kHz\n")
+                             f"{fr[0] / 1e3:.3g}-{fr[-1] / 1e3:.3g} kHz"
+                             + (f"; dropped: {dropped}" if dropped else "") + "\n")
+        for note in feats.get("analysis", {}).get("notes", []):
+            if note.startswith("no velocity") or "not reported" in note:
+                sys.stdout.write(note + "\n")
     return feats

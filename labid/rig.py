@@ -18,7 +18,7 @@ from drivers.protocol import ChannelConfig, Timing, Trigger
 
 from .errors import UserError
 
-BUILTIN = {"default": "rig_default.toml"}
+BUILTIN = {"default": "rig_default.toml", "pzt-aluminium": "rig_pzt_aluminium.toml"}
 ROLES = ("hammer", "wave")
 KINDS = ("accelerometer", "force", "voltage")
 COUPLINGS = ("IEPE", "AC", "DC")
@@ -49,6 +49,8 @@ class DeviceSpec:
     max_rate_hz: float = DEFAULT_MAX_RATE_HZ
     adc_bits: int = 16
     noise_v: float = 0.0
+    crosstalk_db: float | None = None
+    acquisitions: tuple[tuple[str, ...], ...] = ()
     trigger_jitter_s: float = 0.0
     antialias: AntiAlias = AntiAlias()
     trigger_timeout_s: float = 10.0
@@ -60,20 +62,60 @@ class DeviceSpec:
         raise KeyError(name)
 
 
+FACES = ("top", "bottom")
+SOURCE_KINDS = ("pencil", "hammer", "tone_burst", "pzt")
+WINDOWS = ("hann", "hamming", "rect")
+PAIRS = ("symmetric", "antisymmetric")
+
+
 @dataclass(frozen=True)
 class WaveSensor:
-    """A guided-wave sensor: distance (m) and direction (deg) from the wave source."""
+    """A guided-wave sensor: distance (m) and direction (deg) from the wave source.
+
+    face: the plate face it is bonded to ('top', 'bottom'). highpass_hz: corner of its
+    first-order high-pass (AC/IEPE coupling), None: none. resonance_hz, resonance_q: a
+    resonant sensor, a damped second-order response w0^2 / (w0^2 - w^2 + i w w0 / Q)
+    (None: flat). acquisition: which acquisition of a shot records it (0, 1, ...).
+    """
 
     channel: str
     distance_m: float
     direction_deg: float = 0.0
     volts_per_strain: float = 1.0e4
     length_m: float = 0.0
+    face: str = "top"
+    highpass_hz: float | None = None
+    resonance_hz: float | None = None
+    resonance_q: float = 5.0
+    acquisition: int = 0
+
+
+@dataclass(frozen=True)
+class Burst:
+    """A windowed sine burst: centre frequency (Hz), cycles, window ('hann', 'hamming',
+    'rect') and amplitude (N for a force tone burst, V for a piezo's excitation)."""
+
+    frequency_hz: float
+    cycles: float = 5.0
+    window: str = "hann"
+    amplitude: float = 1.0
+
+    @property
+    def duration_s(self) -> float:
+        return self.cycles / self.frequency_hz
 
 
 @dataclass(frozen=True)
 class Source:
-    """An excitation: 'hammer' (half-sine, contact_s) or 'pencil' (lead break, rise_s)."""
+    """An excitation of the plate.
+
+    kind: 'hammer' (half-sine of contact_s), 'pencil' (lead break, rise_s), 'tone_burst'
+    (a normal point force following ``burst``, N) or 'pzt' (a bonded piezo disc of
+    ``diameter_m`` on ``face``, driven by the voltage ``burst``, V; ``pair``: a collocated
+    top/bottom pair driven 'symmetric' (in phase: S modes only) or 'antisymmetric').
+    channel: the channel recording the source (force or excitation voltage), if any.
+    newton_per_volt: the piezo's pin force per volt (simulator).
+    """
 
     kind: str
     x: float
@@ -81,6 +123,12 @@ class Source:
     force_n: float = 1.0
     contact_s: float = 2.0e-4
     rise_s: float = 1.0e-6
+    burst: Burst | None = None
+    channel: str | None = None
+    diameter_m: float = 0.01
+    face: str = "top"
+    pair: str | None = None
+    newton_per_volt: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -95,6 +143,7 @@ class SimSettings:
     double_hit_ratio: float = 0.3
     miss_probability: float = 0.0
     wave_fmax_hz: float = 400.0e3
+    reflections: int = 1          # edge reflections of the wave shots: image-source order 0, 1 or 2
 
 
 @dataclass(frozen=True)
@@ -103,8 +152,8 @@ class Rig:
 
     name: str
     devices: tuple[DeviceSpec, ...]
-    hammer: Source
-    wave_source: Source
+    hammer: Source | None
+    wave_source: Source | None
     wave_sensors: tuple[WaveSensor, ...] = ()
     supports: tuple[tuple[float, float], ...] = ()
     sim: SimSettings = SimSettings()
@@ -152,8 +201,8 @@ class Rig:
 
     def check_specimen(self, length: float, width: float) -> None:
         """Every position on the plate must lie within it (UserError otherwise)."""
-        pts = [("hammer", self.hammer.x, self.hammer.y),
-               ("wave_source", self.wave_source.x, self.wave_source.y)]
+        pts = [(key, src.x, src.y) for key, src in (("hammer", self.hammer), ("wave_source", self.wave_source))
+               if src is not None]
         pts += [(f"supports[{i}]", x, y) for i, (x, y) in enumerate(self.supports)]
         for d in self.devices:
             pts += [(f"devices.{d.name}.channels.{c.name}", c.x, c.y)
@@ -233,13 +282,14 @@ def _str(tab, key, where, src, *, choices: tuple[str, ...] | None = None, defaul
 
 _CHANNEL_KEYS = {"name", "kind", "physical", "sensitivity", "range_v", "coupling", "x", "y",
                  "mass_kg", "length_m", "excitation_current_a", "distance_m", "direction_deg",
-                 "volts_per_strain"}
+                 "volts_per_strain", "face", "highpass_hz", "resonance_hz", "resonance_q", "acquisition"}
 _DEVICE_KEYS = {"role", "product", "daq_device", "max_rate_hz", "rate_hz", "samples", "pretrigger",
                 "adc_bits", "noise_v", "trigger_jitter_s", "antialias", "trigger", "channels",
-                "trigger_timeout_s"}
+                "trigger_timeout_s", "crosstalk_db"}
 
 
-def _channel(tab: Any, where: str, src: str, source: Source) -> tuple[ChannelConfig, WaveSensor | None]:
+def _channel(tab: Any, where: str, src: str, source: Source | None
+             ) -> tuple[ChannelConfig, WaveSensor | None, int]:
     if not isinstance(tab, Mapping):
         raise _err(src, where.rstrip("."), f"value {tab!r}: expected a [[channels]] table")
     _keys(tab, _CHANNEL_KEYS, where, src)
@@ -258,24 +308,38 @@ def _channel(tab: Any, where: str, src: str, source: Source) -> tuple[ChannelCon
     mass = _num(tab, "mass_kg", where, src, default=0.0, lo=0.0, what="a mass in kg")
     length = _num(tab, "length_m", where, src, default=0.0, lo=0.0, what="a length in m")
     iexc = _num(tab, "excitation_current_a", where, src, default=0.004, lo=0.0, what="a current in A")
+    acq = _int(tab, "acquisition", where, src, default=0, lo=0, hi=64)
     wave = None
     if "distance_m" in tab:
+        if source is None:
+            raise _err(src, where + "distance_m", "a wave sensor needs a wave source; expected a "
+                       "[wave_source] table (or [hammer]) with its position")
         d = _num(tab, "distance_m", where, src, lo=0.0, lo_open=True, what="a positive distance in m")
         ang = _num(tab, "direction_deg", where, src, default=0.0, what="an angle in degrees")
         vps = _num(tab, "volts_per_strain", where, src, default=1.0e4, lo=0.0, lo_open=True,
                    what="a positive transduction in V per unit strain")
-        wave = WaveSensor(name, d, ang, vps, length)
+        hp = _num(tab, "highpass_hz", where, src, default=None, lo=0.0, lo_open=True,
+                  what="a high-pass corner in Hz")
+        res = _num(tab, "resonance_hz", where, src, default=None, lo=0.0, lo_open=True,
+                   what="a resonance frequency in Hz")
+        q = _num(tab, "resonance_q", where, src, default=5.0, lo=0.5, hi=1e4, what="a quality factor")
+        wave = WaveSensor(name, d, ang, vps, length, _str(tab, "face", where, src, choices=FACES, default="top"),
+                          hp, res, q, acq)
         if x is None:
             x = source.x + d * math.cos(math.radians(ang))
             y = source.y + d * math.sin(math.radians(ang))
-    elif kind == "accelerometer" and x is None:
-        raise _err(src, where + "x", "missing key; an accelerometer needs its position x, y in m")
+    else:
+        for k in ("face", "highpass_hz", "resonance_hz", "resonance_q"):
+            if k in tab:
+                raise _err(src, where + k, "only for a guided-wave sensor; expected distance_m too")
+        if kind == "accelerometer" and x is None:
+            raise _err(src, where + "x", "missing key; an accelerometer needs its position x, y in m")
     return ChannelConfig(name=name, kind=kind, physical=_str(tab, "physical", where, src, default=""),
                          sensitivity=sens, range_v=rng, coupling=coupling, x=x, y=y, mass_kg=mass,
-                         length_m=length, excitation_current_a=iexc), wave
+                         length_m=length, excitation_current_a=iexc), wave, acq
 
 
-def _device(name: str, tab: Any, src: str, wave_source: Source) -> tuple[DeviceSpec, list[WaveSensor]]:
+def _device(name: str, tab: Any, src: str, wave_source: Source | None) -> tuple[DeviceSpec, list[WaveSensor]]:
     where = f"devices.{name}."
     if not isinstance(tab, Mapping):
         raise _err(src, where.rstrip("."), f"value {tab!r}: expected a table")
@@ -294,12 +358,13 @@ def _device(name: str, tab: Any, src: str, wave_source: Source) -> tuple[DeviceS
     chans_raw = tab.get("channels")
     if not isinstance(chans_raw, list) or not chans_raw:
         raise _err(src, where + "channels", "missing or empty; expected [[devices.NAME.channels]] tables")
-    chans, waves = [], []
+    chans, waves, acqs = [], [], []
     for i, ct in enumerate(chans_raw):
-        c, w = _channel(ct, f"{where}channels[{i}].", src, wave_source)
+        c, w, a = _channel(ct, f"{where}channels[{i}].", src, wave_source)
         if any(o.name == c.name for o in chans):
             raise _err(src, f"{where}channels[{i}].name", f"value {c.name!r}: duplicate channel name")
         chans.append(c)
+        acqs.append(a)
         if w:
             waves.append(w)
     names = [c.name for c in chans]
@@ -318,6 +383,16 @@ def _device(name: str, tab: Any, src: str, wave_source: Source) -> tuple[DeviceS
                        f"+/-{rng:g} V range of channel {ch!r}")
         trigger = Trigger(ch, level, _str(tt, "slope", tw, src, choices=("rising", "falling"),
                                           default="rising"))
+    groups = tuple(tuple(c.name for c, a in zip(chans, acqs) if a == k) for k in range(max(acqs) + 1))
+    if len(groups) > 1:
+        empty = [k for k, g in enumerate(groups) if not g]
+        if empty:
+            raise _err(src, where + "channels", f"acquisition {empty[0]} has no channel; expected "
+                       f"acquisitions numbered 0..{len(groups) - 1} without gaps")
+        if trigger is None or any(w.channel == trigger.channel for w in waves):
+            raise _err(src, where + "trigger.channel", "separate acquisitions need a common trigger; "
+                       "expected the trigger on the channel recording the source (the wave_source "
+                       "channel or a force channel), not on a sensor")
     aa_tab = _table(tab, "antialias", src, where)
     aw = where + "antialias."
     _keys(aa_tab, {"kind", "order", "cutoff_ratio"}, aw, src)
@@ -331,6 +406,9 @@ def _device(name: str, tab: Any, src: str, wave_source: Source) -> tuple[DeviceS
         daq_device=_str(tab, "daq_device", where, src, default=""),
         adc_bits=_int(tab, "adc_bits", where, src, default=16, lo=8, hi=32),
         noise_v=_num(tab, "noise_v", where, src, default=0.0, lo=0.0, what="a noise level in V rms"),
+        crosstalk_db=_num(tab, "crosstalk_db", where, src, default=None, hi=0.0,
+                          what="a coupling in dB (negative)"),
+        acquisitions=groups,
         trigger_jitter_s=_num(tab, "trigger_jitter_s", where, src, default=0.0, lo=0.0,
                               what="a jitter in s"),
         antialias=aa,
@@ -339,13 +417,49 @@ def _device(name: str, tab: Any, src: str, wave_source: Source) -> tuple[DeviceS
     return dev, waves
 
 
+_SOURCE_KEYS = {
+    "pencil": {"rise_s", "force_n"},
+    "hammer": {"contact_s", "force_n"},
+    "tone_burst": {"frequency_hz", "cycles", "window", "force_n"},
+    "pzt": {"diameter_m", "face", "pair", "excitation", "newton_per_volt"},
+}
+
+
+def _burst(tab: Mapping, where: str, src: str, amplitude_key: str, amplitude_what: str) -> Burst:
+    """The burst keys of a tone_burst source or a pzt's excitation table."""
+    b = Burst(_num(tab, "frequency_hz", where, src, lo=0.0, lo_open=True, what="a centre frequency in Hz"),
+              _num(tab, "cycles", where, src, default=5.0, lo=0.5, hi=1000.0, what="a number of cycles"),
+              _str(tab, "window", where, src, choices=WINDOWS, default="hann"),
+              _num(tab, amplitude_key, where, src, default=1.0, lo=0.0, lo_open=True, what=amplitude_what))
+    return b
+
+
 def _source(tab: Mapping, key: str, src: str, kinds: tuple[str, ...], default_kind: str) -> Source:
     where = key + "."
-    _keys(tab, {"kind", "x", "y", "force_n", "contact_s", "rise_s"}, where, src)
+    kind = _str(tab, "kind", where, src, choices=kinds, default=default_kind)
+    _keys(tab, {"kind", "x", "y", "channel"} | _SOURCE_KEYS[kind], where, src)
+    chan = tab.get("channel")
+    if chan is not None and not isinstance(chan, str):
+        raise _err(src, where + "channel", f"value {chan!r}: expected a channel name")
+    common = dict(kind=kind, x=_num(tab, "x", where, src, what="a position in m"),
+                  y=_num(tab, "y", where, src, what="a position in m"), channel=chan)
+    if kind == "tone_burst":
+        b = _burst(tab, where, src, "force_n", "a peak force in N")
+        return Source(**common, force_n=b.amplitude, burst=b)
+    if kind == "pzt":
+        ex = _table(tab, "excitation", src, where, required=True)
+        ew = where + "excitation."
+        _keys(ex, {"kind", "frequency_hz", "cycles", "window", "amplitude_v"}, ew, src)
+        _str(ex, "kind", ew, src, choices=("tone_burst",), default="tone_burst")
+        pair = _str(tab, "pair", where, src, choices=PAIRS, default=None)
+        return Source(**common, burst=_burst(ex, ew, src, "amplitude_v", "a peak voltage in V"),
+                      diameter_m=_num(tab, "diameter_m", where, src, default=0.01, lo=0.0, lo_open=True,
+                                      what="a disc diameter in m"),
+                      face=_str(tab, "face", where, src, choices=FACES, default="top"), pair=pair,
+                      newton_per_volt=_num(tab, "newton_per_volt", where, src, default=1.0, lo=0.0,
+                                           lo_open=True, what="a pin force per volt in N/V"))
     return Source(
-        kind=_str(tab, "kind", where, src, choices=kinds, default=default_kind),
-        x=_num(tab, "x", where, src, what="a position in m"),
-        y=_num(tab, "y", where, src, what="a position in m"),
+        **common,
         force_n=_num(tab, "force_n", where, src, default=1.0, lo=0.0, lo_open=True, what="a force in N"),
         contact_s=_num(tab, "contact_s", where, src, default=2.0e-4, lo=0.0, lo_open=True,
                        what="a contact duration in s"),
@@ -356,9 +470,11 @@ def _source(tab: Mapping, key: str, src: str, kinds: tuple[str, ...], default_ki
 def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "") -> Rig:
     """Build and validate a Rig from a parsed TOML table."""
     _keys(doc, {"name", "session", "hammer", "wave_source", "supports", "simulation", "devices"}, "", src)
-    ham = _source(_table(doc, "hammer", src, required=True), "hammer", src, ("hammer",), "hammer")
-    ws_tab = _table(doc, "wave_source", src)
-    wsrc = _source(ws_tab, "wave_source", src, ("pencil", "hammer"), "pencil") if ws_tab else ham
+    roles = _device_roles(doc, src)
+    ham_tab = _table(doc, "hammer", src, required="hammer" in roles)
+    ham = _source(ham_tab, "hammer", src, ("hammer",), "hammer") if ham_tab else None
+    ws_tab = _table(doc, "wave_source", src, required="wave" in roles and ham is None)
+    wsrc = _source(ws_tab, "wave_source", src, SOURCE_KINDS, "pencil") if ws_tab else ham
     sess = _table(doc, "session", src)
     _keys(sess, {"hits", "waves", "max_retries"}, "session.", src)
     simt = _table(doc, "simulation", src)
@@ -380,7 +496,8 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
         miss_probability=_num(simt, "miss_probability", sw, src, default=d0.miss_probability, lo=0.0,
                               hi=1.0, what="a probability"),
         wave_fmax_hz=_num(simt, "wave_fmax_hz", sw, src, default=d0.wave_fmax_hz, lo=0.0, lo_open=True,
-                          what="a frequency in Hz"))
+                          what="a frequency in Hz"),
+        reflections=_int(simt, "reflections", sw, src, default=d0.reflections, lo=0, hi=2))
     devs_tab = _table(doc, "devices", src, required=True)
     if not devs_tab:
         raise _err(src, "devices", "empty; expected at least one [devices.NAME] table")
@@ -395,6 +512,12 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
     dup = {n for n in names if names.count(n) > 1}
     if dup:
         raise _err(src, "devices", f"channel name(s) {sorted(dup)} used on two devices; expected unique names")
+    wdev = next((d for d in devices if d.role == "wave"), None)
+    if ws_tab and wsrc.channel is not None:
+        wn = [c.name for c in wdev.channels] if wdev else []
+        if wsrc.channel not in wn or any(w.channel == wsrc.channel for w in waves):
+            raise _err(src, "wave_source.channel", f"value {wsrc.channel!r}: expected a channel of the "
+                       f"wave device that records the source (not a sensor), one of {wn}")
     sup = doc.get("supports", [])
     if not isinstance(sup, list):
         raise _err(src, "supports", f"value {sup!r}: expected [[supports]] tables with x, y in m")
@@ -411,6 +534,12 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
                waves=_int(sess, "waves", "session.", src, default=3, lo=0),
                max_retries=_int(sess, "max_retries", "session.", src, default=5, lo=0),
                text=text, source=src)
+
+
+def _device_roles(doc: Mapping[str, Any], src: str) -> set[str]:
+    """The roles of the devices a rig document declares (validated again in ``_device``)."""
+    devs = _table(doc, "devices", src, required=True)
+    return {t.get("role") for t in devs.values() if isinstance(t, Mapping)}
 
 
 def read_rig_text(path: str | Path | None) -> tuple[str, str]:

@@ -5,13 +5,10 @@ Vibration shots (``role='hammer'``, ~10 kHz): the plate modes of
 (``mock_hw.vibration``). The force channel reads F(t). Rigid-body/suspension
 modes are left out (they lie below the IEPE high-pass).
 
-Wave shots (``role='wave'``, 1-5 MHz): surface strain along the path of an
-infinite plate from a pencil-lead break or a hammer, at each sensor's distance,
-times the sensor's volts per strain: the per-mode SAFE transfer functions of
-``engine.safe.mode_transfer`` times the force spectrum, synthesised directly on
-the oversampled grid (so that a per-mode viscoelastic attenuation and a time
-offset apply in the frequency domain), then made causal before the fastest
-possible arrival (``_causal``).
+Wave shots (``role='wave'``, 1-5 MHz): ``mock_hw.waves`` (sources: pencil, hammer,
+tone burst, piezo disc; direct path and edge reflections by image sources; the
+sensors' face, high-pass and resonance), then crosstalk between the channels
+(``crosstalk_db``).
 
 What a real record has, in this order: the continuous signal on a grid
 ``OVERSAMPLE`` times finer than the sample clock, the device's anti-alias
@@ -42,9 +39,9 @@ from drivers.protocol import ChannelConfig, NoTrigger, Record, Timing, Trigger
 from engine.forward.effects import ALPHA_FIBRE, ALPHA_ISOTROPIC, ALPHA_MATRIX, EFFECTS
 from engine.laminate import Laminate
 
-from .vibration import half_sine, vibration_signals
-
-OVERSAMPLE = 4
+from . import waves
+from .vibration import vibration_signals
+from .waves import OVERSAMPLE
 ROLE_IDS = {"hammer": 0, "wave": 1}
 
 #: temperature coefficients of the moduli (ALPHA_*) and the effect registry (EFFECTS): engine.forward.effects
@@ -238,7 +235,8 @@ class SimulatedDevice:
         channels, timing, trigger = self._cfg
         tpl, spec, sim, src = self._tpl, self.spec, self.rig.sim, self.source
         miss = rng.random() < sim.miss_probability
-        amp = src.force_n * max(0.05, 1.0 + sim.force_spread * rng.standard_normal())
+        spread = sim.force_spread if waves.mechanical(src) else 0.0   # a generator repeats itself
+        amp = waves.source_peak(src) * max(0.05, 1.0 + spread * rng.standard_normal())
         dbl = rng.random() < sim.double_hit_probability if self.force_double_hit is None \
             else self.force_double_hit
         dbl = dbl and src.kind == "hammer"
@@ -325,108 +323,12 @@ def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple
     if role == "hammer":
         raw = vibration_signals(rig, specimen, lam, effects, channels, t)
     else:
-        raw = _waves(rig, lam, effects, channels, fs, timing.samples, lead, nf)
+        raw = waves.wave_channels(rig, (specimen.length, specimen.width), lam, effects, channels, fs,
+                                  lead, nf)
+        raw = waves.apply_crosstalk(raw, spec.crosstalk_db)
     sos, gd = _butter_or_bessel(spec.antialias.kind, spec.antialias.order,
                                 spec.antialias.cutoff_ratio * fs, fsf)
     fine = {k: (signal.sosfilt(sos, v) if sos is not None else v) for k, v in raw.items()}
     return _Template(fine, lead, fsf, gd)
 
 
-def _waves(rig, lam, effects, channels, fs, samples, lead, nf) -> dict[str, np.ndarray]:
-    src, sim = rig.wave_source, rig.sim
-    fmax = min(sim.wave_fmax_hz, 0.45 * fs)
-    force = ("pencil", src.rise_s) if src.kind == "pencil" else ("hammer", src.contact_s)
-    out: dict[str, np.ndarray] = {}
-    tf = (np.arange(nf) - lead) / (OVERSAMPLE * fs)
-    for c in channels:
-        if c.kind == "force":
-            out[c.name] = c.sensitivity * (half_sine(tf, src.contact_s) if src.kind == "hammer"
-                                           else np.clip(tf / src.rise_s, 0.0, 1.0) * (tf >= 0))
-            continue
-        ws = rig.wave_sensor(c.name)
-        if ws is None:
-            continue
-        d = ws.distance_m + effects.path_length
-        ap = effects.sensor_aperture if effects.sensor_aperture > 0 else ws.length_m
-        strain = _wave_fine(lam, d, force, fs, nf - lead, ws.direction_deg, ap, fmax,
-                            effects.viscoelastic, effects.timing_offset)
-        out[c.name] = np.concatenate([np.zeros(lead), ws.volts_per_strain * c.sensitivity * strain])
-    return out
-
-
-@functools.lru_cache(maxsize=64)
-def _wave_fine(lam, d: float, force_key: tuple, fs: float, n_fine: int, direction_deg: float,
-               aperture: float, fmax: float, eta: float, delay_s: float) -> np.ndarray:
-    """Surface strain per newton at distance d on the fine grid (OVERSAMPLE * fs), t = 0
-    at the force onset.
-
-    Sum over the SAFE modes of ``engine.safe.mode_transfer`` times the force
-    spectrum (half-cosine taper over the top 10 % below fmax, DC dropped), each
-    mode attenuated by exp(-eta k_m d / 2) with k_m = 2 pi f / c_phase,m, made
-    causal (``_causal``), then delayed by delay_s (to the nearest fine sample,
-    1 / (OVERSAMPLE fs)). FFT period: 8 records.
-    """
-    from scipy.fft import irfft, next_fast_len
-
-    from engine import safe
-    kind, dur = force_key
-    force = (safe.pencil_lead_break(rise_s=dur, amplitude_n=1.0) if kind == "pencil"
-             else safe.hammer_force(dur, amplitude_n=1.0))
-    n_rec = -(-n_fine // OVERSAMPLE)
-    n_fft = next_fast_len(8 * n_rec, real=True)
-    f = np.fft.rfftfreq(n_fft, 1.0 / fs)
-    band = (f > 0) & (f <= fmax)
-    fb = f[band]
-    taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
-    H = safe.mode_transfer(lam, d, fb, direction_deg=direction_deg, quantity="strain",
-                           sensor_length_m=aperture, source="point")
-    if eta > 0:
-        disp = safe.dispersion(lam, np.linspace(fmax / 256, fmax, 256), direction_deg)
-        for label in H:
-            cp = disp.mode(label).phase_velocity_m_s
-            ok = np.isfinite(cp)
-            if ok.sum() < 2:
-                continue
-            cpf = np.interp(fb, disp.frequency_hz[ok], cp[ok])
-            H[label] = H[label] * np.exp(-eta * (2 * np.pi * fb / cpf) * d / 2.0)
-    total = sum(H.values(), np.zeros(fb.size, complex))
-    Y = np.zeros(f.shape, complex)
-    Y[band] = np.conj(total) * force.spectrum(fb) * taper
-    y = irfft(Y, n=OVERSAMPLE * n_fft) * fs * OVERSAMPLE
-    t_first = max(d - aperture / 2.0, 1e-6) / _fastest(lam, direction_deg, fmax)
-    y = _causal(y, OVERSAMPLE * fs, t_first)
-    shift = int(round(delay_s * OVERSAMPLE * fs))     # delay to the nearest fine sample
-    if shift > 0:
-        y = np.concatenate([np.zeros(shift), y[:-shift]])
-    elif shift < 0:
-        y = np.concatenate([y[-shift:], np.full(-shift, y[-1])])
-    return y[:n_fine]
-
-
-@functools.lru_cache(maxsize=16)
-def _fastest(lam, direction_deg: float, fmax: float) -> float:
-    """Largest group velocity (m/s) of any guided mode below fmax."""
-    from engine import safe
-    disp = safe.dispersion(lam, np.linspace(fmax / 200, fmax, 200), direction_deg)
-    return float(max(np.nanmax(m.group_velocity_m_s) for m in disp.modes))
-
-
-def _causal(y: np.ndarray, fs: float, t_first: float) -> np.ndarray:
-    """Enforce causality on a SAFE record: nothing can arrive before t_first = d / c_max.
-
-    The propagating-mode sum with its DC bin dropped carries a constant offset
-    (the period mean of the quasi-static step response) plus a slow drift; the
-    offset is the mean over t < 0.95 t_first, subtracted everywhere, and the
-    remainder before that time is faded out with a half-cosine.
-    """
-    y = np.array(y, float)
-    m = int(0.95 * t_first * fs)
-    if m >= 2:
-        y -= y[:m].mean()
-        ramp = np.zeros(m)
-        k = max(1, m // 5)
-        ramp[m - k:] = 0.5 - 0.5 * np.cos(np.pi * (np.arange(k) + 1) / (k + 1))
-        y[:m] *= ramp
-    else:
-        y -= y[0]
-    return y

@@ -31,3 +31,11 @@ def test_demo_end_to_end(tmp_path, capsys):
         assert (tmp_path / "demo" / res["files"][key].split("/")[-1]).stat().st_size > 0
     html = (out / "report.html").read_text()
     assert "data:image/png;base64," in html
+    # section 6: waves only, a tone-burst pitch-catch run on the aluminium plate (edge
+    # reflections, crosstalk, sensor response): E and G within 1 % of the truth
+    al = res["waves_only_aluminium"]
+    truth_al = load_specimen("aluminium").laminate.plies[0].material.params()
+    assert al["converged"] and set(al["identified"]) == {"E", "G"}
+    for n in ("E", "G"):
+        assert al["identified"][n]["value"] == pytest.approx(truth_al[n], rel=0.01), n
+    assert al["points"]["A0"] >= 2 and al["points"]["S0"] >= 2

@@ -311,3 +311,66 @@ def test_line_step_strain_follows_kirchhoff_beam_response():
     idx = np.array([1000, 2000, 3000, 4000, 6000, n - 1])
     ref = [np.trapezoid((2j * u * eps * (np.exp(-1j * om * i / fs) - 1) / om).real, u) / np.pi for i in idx]
     assert np.max(np.abs(y[idx] - ref)) < 1e-2 * np.max(np.abs(y)), (y[idx], ref)
+
+
+# --------------------------------------------------------------------------- issue 14: piezo disc, faces
+def test_pin_force_s0_is_the_membrane_wave_of_a_ring_of_radial_traction():
+    """A bonded disc of radius a as its pin force: a ring of radial traction tau at r = a.
+    At low frequency S0 is the membrane wave (plate speed c_p = sqrt(E / rho (1 - nu^2)))
+    whose exact radial displacement outside the ring is
+    u_r = (i pi / 2) tau a J1(k a) H1(k r) / (rho h c_p^2) (Helmholtz potential of the
+    disc of body force); its strain is d u_r / dr. mode_transfer(load='pin') is per newton
+    of total ring force 2 pi a tau. The relative error is O((k h)^2)."""
+    from scipy.special import j1
+    E, nu, rho, h = 70e9, 0.33, 2700.0, 3e-3
+    plate = Laminate((Ply(Material.isotropic_from(E, rho, nu=nu, name="Al"), 0.0, h),))
+    cp = np.sqrt(E / (rho * (1 - nu ** 2)))
+    f = np.array([2e3, 5e3, 10e3])
+    a, r = 5e-3, 0.3
+    got = mode_transfer(plate, r, f, quantity="strain", load="pin", actuator_radius_m=a, modes=("S0",))["S0"]
+    k = 2 * np.pi * f / cp
+    tau = 1.0 / (2 * np.pi * a)
+    ref = (1j * np.pi / 2 * tau * a * j1(k * a) * (k * hankel1(0, k * r) - hankel1(1, k * r) / r)
+           / (rho * h * cp ** 2))
+    err = np.abs(got / ref - 1)
+    assert np.all(err < 2 * (k * h) ** 2) and err[0] < 1e-4, err
+
+
+def test_bottom_face_mirrors_the_top_for_a_homogeneous_plate():
+    """Mirror symmetry of a one-ply plate: in-plane strain on the bottom face is that on the
+    top for the symmetric modes and its opposite for the antisymmetric ones (exact)."""
+    f = np.array([20e3, 80e3, 150e3])
+    kw = dict(quantity="strain", load="pin", actuator_radius_m=4e-3)
+    top = mode_transfer(AL_PLATE, 0.2, f, **kw)
+    bot = mode_transfer(AL_PLATE, 0.2, f, sensor_face="bottom", **kw)
+    np.testing.assert_allclose(bot["S0"], top["S0"], rtol=1e-9)
+    np.testing.assert_allclose(bot["A0"], -top["A0"], rtol=1e-9)
+    # a top/bottom actuator pair driven in phase excites no A0 (and in anti-phase no S0)
+    src_bot = mode_transfer(AL_PLATE, 0.2, f, source_face="bottom", **kw)
+    assert np.max(np.abs(top["A0"] + src_bot["A0"])) < 1e-9 * np.max(np.abs(top["A0"]))
+    assert np.max(np.abs(top["S0"] - src_bot["S0"])) < 1e-9 * np.max(np.abs(top["S0"]))
+    with pytest.raises(SafeError):
+        mode_transfer(AL_PLATE, 0.2, f, quantity="strain", load="pin")          # no radius
+
+
+def test_mode_velocities_are_the_group_velocities():
+    from engine.safe import mode_velocities
+    f = np.linspace(20e3, 200e3, 12)
+    mv = mode_velocities(CFRP, f, direction_deg=30.0)
+    for m in ("A0", "S0", "SH0"):
+        np.testing.assert_allclose(mv[m][1], group_velocity(CFRP, f, m, 30.0), rtol=1e-4)
+
+
+@pytest.mark.parametrize("window", ["hann", "hamming", "rect"])
+def test_tone_burst_windows(window):
+    """amplitude w(t / T) sin(2 pi fc t): at the crest 2.25 cycles in, w(2.25 / N); zero at
+    t = 0 for every window (sin 0)."""
+    fc, n = 100e3, 5
+    b = tone_burst(fc, n, 2.0, window=window)
+    t = 2.25 / fc
+    x = 2.25 / n
+    w = {"hann": np.sin(np.pi * x) ** 2, "hamming": 0.54 - 0.46 * np.cos(2 * np.pi * x), "rect": 1.0}[window]
+    assert float(b(t)) == pytest.approx(2.0 * w, rel=1e-3)
+    assert float(b(0.0)) == 0.0
+    with pytest.raises(SafeError):
+        tone_burst(fc, n, window="kaiser")

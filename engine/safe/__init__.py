@@ -18,7 +18,7 @@ Public API (re-exported here): ``dispersion``, ``dispersion_from_model``,
 ``group_velocity``, ``Dispersion``, ``ModeCurve``, ``safe_model``, ``SafeModel``,
 ``default_discretisation``, ``ply_stiffness``, ``bond_matrix``, ``SafeError``,
 ``ForceHistory``, ``hammer_force``, ``pencil_lead_break``, ``tone_burst``,
-``mode_transfer``, ``transient_response``, ``QUANTITIES``.
+``mode_transfer``, ``mode_velocities``, ``transient_response``, ``QUANTITIES``.
 
 Package-internal (public names shared by the modules of this package, and used by
 its tests and benchmarks; not for other layers): ``model.DofClass``,
@@ -28,12 +28,12 @@ its tests and benchmarks; not for other layers): ``model.DofClass``,
 from .curves import Dispersion, ModeCurve, dispersion, dispersion_from_model, group_velocity
 from .forces import ForceHistory, hammer_force, pencil_lead_break, tone_burst
 from .model import SafeError, SafeModel, bond_matrix, default_discretisation, ply_stiffness, safe_model
-from .transient import QUANTITIES, mode_transfer, transient_response
+from .transient import QUANTITIES, mode_transfer, mode_velocities, transient_response
 
 __all__ = [
     "ModeCurve", "Dispersion", "SafeModel", "SafeError",
     "safe_model", "dispersion", "dispersion_from_model", "group_velocity", "default_discretisation",
     "bond_matrix", "ply_stiffness",
     "ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst",
-    "mode_transfer", "transient_response", "QUANTITIES",
+    "mode_transfer", "mode_velocities", "transient_response", "QUANTITIES",
 ]

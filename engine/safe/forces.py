@@ -114,12 +114,24 @@ def pencil_lead_break(rise_s: float = 1e-6, amplitude_n: float = 1.0) -> ForceHi
     return ForceHistory("step", float(amplitude_n), float(rise_s))
 
 
+#: tone-burst windows w(t / T) on [0, 1]
+WINDOWS = {
+    "hann": lambda x: np.sin(np.pi * x) ** 2,
+    "hamming": lambda x: 0.54 - 0.46 * np.cos(2 * np.pi * x),
+    "rect": lambda x: np.ones_like(x),
+}
+
+
 def tone_burst(fc_hz: float, cycles: float = 5.0, amplitude_n: float = 1.0,
-               points_per_cycle: int = 64) -> ForceHistory:
-    """Hann-windowed sine burst of ``cycles`` cycles at ``fc_hz`` (sampled, piecewise linear)."""
+               points_per_cycle: int = 64, window: str = "hann") -> ForceHistory:
+    """Windowed sine burst ``amplitude w(t/T) sin(2 pi fc t)`` of ``cycles`` cycles at
+    ``fc_hz`` (T = cycles / fc; sampled, piecewise linear); ``window`` one of WINDOWS
+    ('hann', the usual choice; 'hamming'; 'rect')."""
     if not (fc_hz > 0 and cycles > 0):
         raise SafeError(f"tone burst fc={fc_hz!r} Hz, cycles={cycles!r}: expected positive values")
+    if window not in WINDOWS:
+        raise SafeError(f"tone burst window {window!r}: expected one of {sorted(WINDOWS)}")
     T = cycles / fc_hz
     t = np.linspace(0.0, T, int(np.ceil(cycles * points_per_cycle)) + 1)
-    f = amplitude_n * np.sin(np.pi * t / T) ** 2 * np.sin(TWO_PI * fc_hz * t)
+    f = amplitude_n * WINDOWS[window](t / T) * np.sin(TWO_PI * fc_hz * t)
     return ForceHistory.from_samples(t, f)

@@ -25,6 +25,19 @@ direction: for anisotropic plates it ignores beam steering / the curvature
 of the wave surface. The strain averaged over a sensor of length L centred
 at d is exactly [u(d + L/2) - u(d - L/2)] / L.
 
+Other loads and faces (``mode_transfer``): by reciprocity a tangential line force
+F_x gives u = i F_x phi_u^2 exp(ikx) / D, w = -F_x phi_u phi_w exp(ikx) / D: the source
+factor is phi at the loaded face along the force (phi_w for a normal force, phi_u for
+an in-plane one), the receiver factor phi_u (u, strain) or i phi_w (w) at the sensor's
+face. A bonded piezo disc of radius a is modelled as its pin force: a ring of radial
+traction tau at r = a (total P = 2 pi a tau). Its order-1 Hankel transform is
+tau a J1(k a), and the residues give u_r = P J1(k a) phi_u^2 (k/2) i H1(kr) / D and
+w = P J1(k a) i phi_u phi_w (k/2) H0(kr) / D, i.e. the point-force expressions with the
+source factor phi_w replaced by J1(k a) phi_u. Check (tested): at low frequency S0 is
+the membrane wave and u_r = (i pi / 2) tau a J1(ka) H1(kr) / (rho h c_p^2) exactly. The
+bottom face (z = -h/2) reads the SAFE mode shapes at the bottom node; no symmetry of
+the laminate is assumed.
+
 Near field: the propagating-mode sum alone is a far-field (k r >> 1)
 approximation. For a point source its strain has a spurious near-field term
 ~ -h / (8 pi D k^2 r^2) ~ 1/f (from H1(kr)/(kr)), which a step force (F ~ 1/f)
@@ -75,6 +88,8 @@ would remove the slow ln t part; apply its filter to the record).
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy import special
 from scipy.fft import irfft, next_fast_len
@@ -85,7 +100,7 @@ from .forces import ForceHistory
 from .labels import branch_table
 from .model import TWO_PI, SafeError, ply_stiffness, safe_model
 
-__all__ = ["mode_transfer", "transient_response", "QUANTITIES"]
+__all__ = ["mode_transfer", "mode_velocities", "transient_response", "QUANTITIES"]
 
 QUANTITIES = ("displacement", "velocity", "acceleration", "strain")
 
@@ -155,6 +170,12 @@ def _check_common(distance_m, quantity, sensor_length_m, source):
         raise SafeError(f"sensor length {sensor_length_m!r} m: expected 0 <= L < 2 d")
 
 
+#: surface probes of the mode data, in order: (face, component) -> row; products column p * 4 + q
+PROBES = {("top", "u"): 0, ("top", "w"): 1, ("bottom", "u"): 2, ("bottom", "w"): 3}
+LOADS = ("normal", "pin")
+FACES = ("top", "bottom")
+
+
 def _mode_data(model, wmax: float, labels, strict: bool = True):
     """Per included mode: Chebyshev series of lambda, lambda' and surface products."""
     rows = branch_table(model, wmax)
@@ -173,7 +194,9 @@ def _mode_data(model, wmax: float, labels, strict: bool = True):
         red = reduce_class(cls, wmax, n_branches=nb, n_k=5, extra=1)   # phase error <~2e-2 rad at 0.3 m
         if red is None:
             continue
-        probes = (cls.to_phys[[top, top + 2], :] @ red.basis)     # (2, r): phi_u, phi_w at the top
+        # (4, r): phi_u, phi_w at the top, then at the bottom (PROBES); their pairwise
+        # products (16 series) give every source face / sensor face combination
+        probes = (cls.to_phys[[top, top + 2, 0, 2], :] @ red.basis)
         br = cheb_branches(red, nb, probes=probes, n_max=N_CHEB_MAX, n_vec=N_VEC)
         for r in rs:
             out.append((r["label"], br, r["j"], r["cutoff"]))
@@ -181,15 +204,24 @@ def _mode_data(model, wmax: float, labels, strict: bool = True):
 
 
 def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_m, source,
-                        near_field: bool = False, loss_factor: float = 0.0):
+                        near_field: bool = False, loss_factor: float = 0.0, load: str = "normal",
+                        radius_m: float = 0.0, source_face: str = "top", sensor_face: str = "top"):
     """Complex transfer per mode (physics convention), per unit force, on grid f (Hz).
 
     near_field: add to A0 its evanescent partner (``_spatial_near``), which cancels the
     spurious 1/r^2 (point) near field of the propagating-only term as k r -> 0.
     loss_factor: eta of moduli C (1 + i eta): each mode decays as exp(-alpha x),
     alpha = eta w / (2 |c_g|) (first order in eta: lambda(k) (1 + i eta) = w^2).
+    load: 'normal' (a force along +z) or 'pin' (a ring of radial surface traction of
+    radius ``radius_m``, total 1 N: the pin-force model of a bonded piezo disc); the
+    source factor is phi_w (normal) or J1(k a) phi_u (pin) at ``source_face``, the
+    receiver factor phi_u (u, strain) or i phi_w (w) at ``sensor_face`` (module docstring).
     """
     w = TWO_PI * f
+    src = PROBES[(source_face, "w" if load == "normal" else "u")]
+    col_u = PROBES[(sensor_face, "u")] * 4 + src
+    col_w = PROBES[(sensor_face, "w")] * 4 + src
+    n_u = int(src in (PROBES[("top", "u")], PROBES[("bottom", "u")]))  # u factors besides the receiver's
     res = {}
     for label, br, j, _cut in data:
         if near_field and label == "A0":
@@ -217,8 +249,13 @@ def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length
             lerp = lambda v: v[i] + t * (v[i + 1] - v[i])
             wK_ok = w[ok] / s
             D = 2.0 * wK_ok * lerp(dt / (2.0 * np.sqrt(np.maximum(lt, 1e-300)))) * s ** 1.5   # 2 w c_g
-            prod = ex["prod"]              # (n+1, 4): uu, uw, wu, ww
-            puw, pww = lerp(prod[:, 1]) * np.sqrt(s), lerp(prod[:, 3])
+            prod = ex["prod"]              # (n+1, 16): products of the PROBES rows
+            # A0 below w_K: phi_u ~ k ~ s^1/2, phi_w constant
+            puw = lerp(prod[:, col_u]) * s ** ((1 + n_u) / 2)
+            pww = lerp(prod[:, col_w]) * s ** (n_u / 2)
+            if load == "pin":
+                ring = special.j1(kk * radius_m)
+                puw, pww = puw * ring, pww * ring
             alpha = loss_factor * w[ok] ** 2 / np.abs(D)          # eta w / (2 |c_g|)
             if quantity == "strain":
                 if sensor_length_m > 0:
@@ -303,10 +340,19 @@ def _transfer_bands(bands, f, distance_m, quantity, sensor_length_m, source,
 def mode_transfer(laminate: Laminate, distance_m: float, frequency_hz, *, direction_deg: float = 0.0,
                   quantity: str = "displacement", sensor_length_m: float = 0.0, source: str = "point",
                   modes=None, order: int | None = None, elements_per_ply: int | None = None,
-                  near_field: bool = False, loss_factor: float = 0.0) -> dict:
+                  near_field: bool = False, loss_factor: float = 0.0, load: str = "normal",
+                  actuator_radius_m: float = 0.0, source_face: str = "top",
+                  sensor_face: str = "top", fmax_hz: float | None = None) -> dict:
     """Per-mode frequency response (per newton of force) at the sensor.
 
     Physics convention exp(i(k x - w t)); zero where a mode does not exist.
+    ``load``: 'normal' (a point or line force along +z) or 'pin' (point source only: a
+    bonded piezo disc of radius ``actuator_radius_m`` as a ring of radial surface traction,
+    per newton of total ring force; module docstring). ``source_face`` / ``sensor_face``:
+    'top' (z = +h/2) or 'bottom' (z = -h/2), read from the SAFE mode shapes at that face
+    (exact for any laminate). The SAFE model of a direction is cached per top frequency
+    (``fmax_hz``, default the grid's; rounded up to two significant digits so that nearby
+    grids share it).
     Returns {label: complex array over frequency_hz}. Propagating modes only unless
     ``near_field``: then 'A0' also carries its evanescent partner (see the module
     docstring), needed wherever k r is not large (low frequencies, near the source).
@@ -314,12 +360,64 @@ def mode_transfer(laminate: Laminate, distance_m: float, frequency_hz, *, direct
     exp(-eta w x / (2 |c_g|)) (first order in eta; A0's near field too).
     """
     _check_common(distance_m, quantity, sensor_length_m, source)
+    _check_load(load, actuator_radius_m, source_face, sensor_face, source, near_field)
     f = np.atleast_1d(np.asarray(frequency_hz, float))
-    model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
-                       fmax_hz=float(f.max()))
-    data = _mode_data(model, TWO_PI * float(f.max()), modes)
+    data = _cached_mode_data(laminate, float(direction_deg), order, elements_per_ply,
+                             _model_top(max(float(f.max()), fmax_hz or 0.0)),
+                             None if modes is None else tuple(sorted(modes)))
     return _transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source, near_field,
-                               float(loss_factor))
+                               float(loss_factor), load, float(actuator_radius_m), source_face, sensor_face)
+
+
+def mode_velocities(laminate: Laminate, frequency_hz, *, direction_deg: float = 0.0, modes=None,
+                    fmax_hz: float | None = None) -> dict:
+    """{label: (wavenumber rad/m, group velocity m/s)} over ``frequency_hz`` of every mode
+    ``mode_transfer`` sums (NaN where a mode does not exist), from the same cached SAFE
+    mode data (``fmax_hz``: its top, default the grid's): the wave packets' travel times
+    at the cost of a table look-up. Group velocity d omega / dk from the Chebyshev series
+    of lambda(k) (relative agreement with ``group_velocity`` ~1e-5)."""
+    f = np.atleast_1d(np.asarray(frequency_hz, float))
+    top = _model_top(max(float(f.max()), fmax_hz or 0.0))
+    data = _cached_mode_data(laminate, float(direction_deg), None, None, top,
+                             None if modes is None else tuple(sorted(modes)))
+    w = TWO_PI * f
+    out = {}
+    for label, br, j, _cut in data:
+        kt, lt, dt, _ = dense_table(br, j)
+        k, i, t = invert_table(kt, lt, dt, w)
+        cg = (dt[i] + t * (dt[i + 1] - dt[i])) / (2.0 * np.where(w > 0, w, 1.0))
+        ok = np.isfinite(k) & (w > 0)
+        out[label] = (np.where(ok, k, np.nan), np.where(ok, cg, np.nan))
+    return out
+
+
+def _check_load(load, radius_m, source_face, sensor_face, source, near_field) -> None:
+    if load not in LOADS:
+        raise SafeError(f"load {load!r}: expected one of {LOADS}")
+    for name, face in (("source_face", source_face), ("sensor_face", sensor_face)):
+        if face not in FACES:
+            raise SafeError(f"{name} {face!r}: expected one of {FACES}")
+    if load == "pin" and not (source == "point" and np.isfinite(radius_m) and radius_m > 0):
+        raise SafeError(f"pin load: expected a point source with actuator radius > 0 m, got "
+                        f"source={source!r}, radius={radius_m!r}")
+    if near_field and (load, source_face) != ("normal", "top"):
+        raise SafeError("near_field: only for a normal force on the top face")
+
+
+def _model_top(fmax_hz: float) -> float:
+    """``fmax_hz`` rounded up to two significant digits (the cache key of a SAFE model)."""
+    e = 10.0 ** (np.floor(np.log10(fmax_hz)) - 1)
+    return float(np.ceil(fmax_hz / e * (1 - 1e-12)) * e)
+
+
+@functools.lru_cache(maxsize=32)
+def _cached_mode_data(laminate: Laminate, direction_deg: float, order, elements_per_ply, fmax_hz: float,
+                      modes):
+    """``_mode_data`` of the SAFE model along ``direction_deg`` up to ``fmax_hz`` (cached:
+    every distance, face and load of one direction reuses it)."""
+    model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
+                       fmax_hz=fmax_hz)
+    return _mode_data(model, TWO_PI * fmax_hz, modes)
 
 
 def transient_response(laminate: Laminate, distance_m: float, force: ForceHistory, fs_hz: float,

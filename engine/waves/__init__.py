@@ -13,7 +13,8 @@ Modules (each readable alone):
   form and the white-noise level of |W|;
 * :mod:`.arrivals` -- arrival time per frequency from |W|, the dispersion-bias
   correction, time gates;
-* :mod:`.velocity` -- group velocity from arrivals, independent points.
+* :mod:`.velocity` -- group velocity from arrivals, independent points;
+* :mod:`.paths` -- ray paths on a rectangular plate: direct and edge reflections (image sources).
 
 The whole measurement of a wave run (band, gates, wavelet choice, S0 separation,
 shots, independent points) is :mod:`engine.waves_pipeline`.
@@ -21,15 +22,16 @@ shots, independent points) is :mod:`engine.waves_pipeline`.
 Public API (re-exported here): ``WaveError``, ``Wavelet``, ``PAPER_ALUMINIUM``,
 ``PAPER_CFRP``, ``cwt``, ``cwt_decimated``, ``white_noise_level``, ``Arrivals``,
 ``arrival_times``, ``correct_dispersion_bias``, ``velocity_gate``, ``expected_gate``,
-``GroupVelocity``, ``group_velocity``, ``independent_points``.
+``GroupVelocity``, ``group_velocity``, ``independent_points``, ``RayPath``, ``ray_paths``.
 """
 from .arrivals import Arrivals, arrival_times, correct_dispersion_bias, expected_gate, velocity_gate
 from .bank import cwt, cwt_decimated, white_noise_level
+from .paths import RayPath, ray_paths
 from .velocity import GroupVelocity, group_velocity, independent_points
 from .wavelet import PAPER_ALUMINIUM, PAPER_CFRP, Wavelet, WaveError
 
 __all__ = [
     "WaveError", "Wavelet", "PAPER_ALUMINIUM", "PAPER_CFRP", "cwt", "cwt_decimated", "white_noise_level",
     "Arrivals", "arrival_times", "velocity_gate", "expected_gate", "GroupVelocity",
-    "group_velocity", "correct_dispersion_bias", "independent_points",
+    "group_velocity", "correct_dispersion_bias", "independent_points", "RayPath", "ray_paths",
 ]

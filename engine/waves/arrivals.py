@@ -60,7 +60,7 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
     """Arrival time of each frequency from the scalogram |W| (nf, n).
 
     gate_s: (lo, hi) times in s (scalars or per frequency); the arrival must be
-        a maximum strictly inside it.
+        a maximum strictly inside it (a NaN gate: the frequency is rejected).
     first_fraction: the first local maximum reaching this fraction of the
         gate's maximum is the arrival (the direct wave, not a later echo).
     noise_rms: RMS of |W| of the noise per frequency (``white_noise_level``
@@ -95,6 +95,9 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
     if noise_rms is not None:
         noise = np.broadcast_to(np.asarray(noise_rms, float), (nf,)).copy()
     for i in range(nf):
+        if not (np.isfinite(lo[i]) and np.isfinite(hi[i])):
+            reason[i] = "empty gate"
+            continue
         k0 = max(int(np.ceil((lo[i] - t[0]) * fs_hz)), 0)
         k1 = min(int(np.floor((hi[i] - t[0]) * fs_hz)) + 1, n)
         if k1 - k0 < 3:

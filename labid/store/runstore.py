@@ -9,7 +9,8 @@ Schema ``labid_schema = 1`` (NeXus-style ``NX_class`` and ``units`` attributes):
     /shots/<kind>          NXdata, one table per shot kind ("hammer", "wave"),
                            attrs: rate_hz (Hz), samples, pretrigger, channels (JSON),
                            trigger (JSON), signal (first channel name)
-        <channel>          (n, samples) float64, volts at the ADC input (units "V"),
+        <channel>          (n, samples) float64, or float32 for wave shots of an ADC of <= 23 bits
+                           (to better than half a step), volts at the ADC input (units "V"),
                            attrs: sensitivity, physical_units, kind, range_v, ...
                            chunked one row per shot, gzip + shuffle
         timestamp          (n,) float64 Unix time, units "s"
@@ -235,9 +236,11 @@ class RunStore:
 
     # -- shots ---------------------------------------------------------
     def declare(self, kind: str, channels: tuple[ChannelConfig, ...], timing: Timing,
-                trigger: Trigger | None) -> None:
+                trigger: Trigger | None, dtype: str = "f8") -> None:
         """Create the table for one shot kind (before any shot: structure changes
-        are not crash-safe, appends are). Idempotent when the layout matches."""
+        are not crash-safe, appends are). Idempotent when the layout matches.
+        ``dtype``: of the sample tables, 'f8' or 'f4' (holds ADC samples of up to 23 bits
+        to better than half a step: ``labid.acquisition.sample_dtype``)."""
         if kind not in KINDS:
             raise ValueError(f"shot kind {kind!r}: expected one of {KINDS}")
         shots = self._f["shots"]
@@ -265,7 +268,7 @@ class RunStore:
         g.attrs["signal"] = channels[0].name
         n = timing.samples
         for c in channels:
-            ds = g.create_dataset(c.name, shape=(0, n), maxshape=(None, n), dtype="f8",
+            ds = g.create_dataset(c.name, shape=(0, n), maxshape=(None, n), dtype=dtype,
                                   chunks=(1, n), compression="gzip", compression_opts=1,
                                   shuffle=True)
             ds.attrs.update(units="V", sensitivity=c.sensitivity, physical_units=c.unit,
@@ -302,7 +305,7 @@ class RunStore:
         meta = json.dumps(record.meta, default=_json_default).encode()
         if len(meta) > _META_LEN:
             raise ValueError(f"record meta too long ({len(meta)} > {_META_LEN} bytes)")
-        row = {c: np.asarray(record.data[c], dtype="f8") for c in names}
+        row = {c: np.asarray(record.data[c], dtype=g[c].dtype) for c in names}
         for c, arr in row.items():
             ds = g[c]
             if arr.shape != (ds.shape[1],):
@@ -376,7 +379,7 @@ class RunStore:
                 n = min(n, max(0, int(limit)))
             if n == 0:
                 continue
-            data = {c.name: g[c.name][:n] for c in chans}
+            data = {c.name: np.asarray(g[c.name][:n], dtype="f8") for c in chans}
             ts, ov = g["timestamp"][:n], g["overload"][:n]
             be, sv, me = g["backend"][:n], g["software_version"][:n], g["meta"][:n]
             for i in range(n):
