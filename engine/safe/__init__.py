@@ -12,6 +12,7 @@ Modules (each readable alone):
 * :mod:`.labels` -- names of the branches (A0, S0, SH0, A1, ...);
 * :mod:`.curves` -- dispersion curves and group velocities (the public entry);
 * :mod:`.forces` -- force histories (hammer, pencil-lead break, tone burst);
+* :mod:`.transfer` -- per-mode transfer functions of a source to a surface sensor;
 * :mod:`.transient` -- forced transient response at a sensor (paper Eqs. 23-26).
 
 Public API (re-exported here): ``dispersion``, ``dispersion_from_model``,
@@ -23,7 +24,7 @@ Public API (re-exported here): ``dispersion``, ``dispersion_from_model``,
 Package-internal (public names shared by the modules of this package, and used by
 its tests and benchmarks; not for other layers): ``model.DofClass``,
 ``model.class_bases``, ``model.coupling``, ``model.TWO_PI``, everything in
-``branches`` and ``labels``.
+``branches``, ``labels`` and ``transfer``.
 """
 from .curves import Dispersion, ModeCurve, dispersion, dispersion_from_model, group_velocity
 from .forces import ForceHistory, hammer_force, pencil_lead_break, tone_burst

@@ -91,190 +91,15 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from scipy import special
 from scipy.fft import irfft, next_fast_len
 
 from ..laminate import Laminate
-from .branches import cheb_branches, dense_table, invert_table, reduce_class
+from .branches import dense_table, invert_table
 from .forces import ForceHistory
-from .labels import branch_table
 from .model import TWO_PI, SafeError, ply_stiffness, safe_model
+from .transfer import QUANTITIES, check_common, check_load, mode_data, transfer_from_data
 
 __all__ = ["mode_transfer", "mode_velocities", "transient_response", "QUANTITIES"]
-
-QUANTITIES = ("displacement", "velocity", "acceleration", "strain")
-
-
-# ---------------------------------------------------------------------------
-# modal transfer functions
-def _hankel(nu: int, z: np.ndarray) -> np.ndarray:
-    """H_nu^(1)(z) for real z > 0: exact below 25, 8-term asymptotic series above."""
-    z = np.asarray(z, float)
-    out = np.empty(z.shape, complex)
-    small = z < 25.0
-    if np.any(small):
-        out[small] = special.hankel1(nu, z[small])
-    if np.any(~small):
-        zz = z[~small]
-        mu = 4.0 * nu * nu
-        term = np.ones_like(zz, dtype=complex)
-        s = term.copy()
-        for m in range(1, 9):
-            term = term * (mu - (2 * m - 1) ** 2) / (m * 8.0 * zz) * 1j
-            s = s + term
-        out[~small] = np.sqrt(2.0 / (np.pi * zz)) * np.exp(1j * (zz - nu * np.pi / 2 - np.pi / 4)) * s
-    return out
-
-
-def _spatial(k: np.ndarray, x: float, source: str, kind: str) -> np.ndarray:
-    """Spatial factor replacing exp(ikx): kind 'w' (w-like), 'u' (u-like), 'du' (d/dx of u-like)."""
-    if source == "line":
-        e = np.exp(1j * k * x)
-        return e * (1j * k) if kind == "du" else e
-    kr = k * x
-    if kind == "w":
-        return 0.5 * k * _hankel(0, kr)
-    if kind == "u":
-        return 0.5 * k * 1j * _hankel(1, kr)
-    return 0.5 * k * 1j * (k * _hankel(0, kr) - _hankel(1, kr) / x)
-
-
-def _spatial_near(k: np.ndarray, x: float, source: str, kind: str) -> np.ndarray:
-    """Near-field (evanescent, k -> i k) partner of ``_spatial`` for the flexural mode.
-
-    Kirchhoff plate: the point-force Green's function is (i / 8 D k^2) [H0(kr) - H0(ikr)]
-    = (i / 8 D k^2) [H0(kr) + (2i/pi) K0(kr)]; the line force gives
-    (i / 4 D k^3) [exp(ikx) + i exp(-kx)]. So H0 -> (2i/pi) K0, H1 -> (2i/pi) K1 (point)
-    and exp(ikx) -> i exp(-kx) for w, -exp(-kx) for u = -(h/2) dw/dx (line).
-    """
-    if source == "line":
-        e = np.exp(-k * x)
-        return {"w": 1j * e, "u": -e, "du": k * e}[kind]
-    kr = k * x
-    e = np.exp(-kr)                  # K_n(z) = k_ne(z) exp(-z): no overflow, 0 far away
-    if kind == "w":
-        return (1j * k / np.pi) * special.k0e(kr) * e
-    if kind == "u":
-        return (-k / np.pi) * special.k1e(kr) * e
-    return (k / np.pi) * (k * special.k0e(kr) + special.k1e(kr) / x) * e
-
-
-def _check_common(distance_m, quantity, sensor_length_m, source):
-    if quantity not in QUANTITIES:
-        raise SafeError(f"quantity {quantity!r}: expected one of {QUANTITIES}")
-    if source not in ("point", "line"):
-        raise SafeError(f"source {source!r}: expected 'point' or 'line'")
-    if not (np.isfinite(distance_m) and distance_m > 0):
-        raise SafeError(f"distance {distance_m!r} m: expected a positive value")
-    if not (sensor_length_m >= 0 and sensor_length_m / 2 < distance_m):
-        raise SafeError(f"sensor length {sensor_length_m!r} m: expected 0 <= L < 2 d")
-
-
-#: surface probes of the mode data, in order: (face, component) -> row; products column p * 4 + q
-PROBES = {("top", "u"): 0, ("top", "w"): 1, ("bottom", "u"): 2, ("bottom", "w"): 3}
-LOADS = ("normal", "pin")
-FACES = ("top", "bottom")
-
-
-def _mode_data(model, wmax: float, labels, strict: bool = True):
-    """Per included mode: Chebyshev series of lambda, lambda' and surface products."""
-    rows = branch_table(model, wmax)
-    if labels is not None:
-        missing = set(labels) - {r["label"] for r in rows}
-        if missing and strict:
-            raise SafeError(f"mode(s) {sorted(missing)} do not exist below {wmax / TWO_PI:g} Hz; "
-                            f"expected some of {[r['label'] for r in rows]}")
-        rows = [r for r in rows if r["label"] in labels]
-    top = 3 * (len(model.z_nodes) - 1)
-    out = []
-    for ci in sorted({r["ci"] for r in rows}):
-        rs = [r for r in rows if r["ci"] == ci]
-        cls = model.classes[ci]
-        nb = max(r["j"] for r in rs) + 1
-        red = reduce_class(cls, wmax, n_branches=nb, n_k=5, extra=1)   # phase error <~2e-2 rad at 0.3 m
-        if red is None:
-            continue
-        # (4, r): phi_u, phi_w at the top, then at the bottom (PROBES); their pairwise
-        # products (16 series) give every source face / sensor face combination
-        probes = (cls.to_phys[[top, top + 2, 0, 2], :] @ red.basis)
-        br = cheb_branches(red, nb, probes=probes, n_max=N_CHEB_MAX, n_vec=N_VEC)
-        for r in rs:
-            out.append((r["label"], br, r["j"], r["cutoff"]))
-    return out
-
-
-def _transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_m, source,
-                        near_field: bool = False, loss_factor: float = 0.0, load: str = "normal",
-                        radius_m: float = 0.0, source_face: str = "top", sensor_face: str = "top"):
-    """Complex transfer per mode (physics convention), per unit force, on grid f (Hz).
-
-    near_field: add to A0 its evanescent partner (``_spatial_near``), which cancels the
-    spurious 1/r^2 (point) near field of the propagating-only term as k r -> 0.
-    loss_factor: eta of moduli C (1 + i eta): each mode decays as exp(-alpha x),
-    alpha = eta w / (2 |c_g|) (first order in eta: lambda(k) (1 + i eta) = w^2).
-    load: 'normal' (a force along +z) or 'pin' (a ring of radial surface traction of
-    radius ``radius_m``, total 1 N: the pin-force model of a bonded piezo disc); the
-    source factor is phi_w (normal) or J1(k a) phi_u (pin) at ``source_face``, the
-    receiver factor phi_u (u, strain) or i phi_w (w) at ``sensor_face`` (module docstring).
-    """
-    w = TWO_PI * f
-    src = PROBES[(source_face, "w" if load == "normal" else "u")]
-    col_u = PROBES[(sensor_face, "u")] * 4 + src
-    col_w = PROBES[(sensor_face, "w")] * 4 + src
-    n_u = int(src in (PROBES[("top", "u")], PROBES[("bottom", "u")]))  # u factors besides the receiver's
-    res = {}
-    for label, br, j, _cut in data:
-        if near_field and label == "A0":
-            spatial = lambda k, x, s, kind: _spatial(k, x, s, kind) + _spatial_near(k, x, s, kind)
-        else:
-            spatial = _spatial
-        kt, lt, dt, ex = dense_table(br, j)
-        k, i, t = invert_table(kt, lt, dt, w)
-        s = np.ones(f.shape)
-        if label == "A0":
-            # lambda = w^2 carries an absolute round-off (|lambda(0)|, ~1 rad^2/s^2 for a
-            # 1.6 mm CFRP), so below w_K (relative error 1e-4) A0 follows its thin-plate
-            # law from w_K: k ~ w^1/2, D = 2 w c_g ~ w^3/2, phi_u phi_w ~ k, phi_w^2 const
-            wK = 100.0 * np.sqrt(abs(lt[0]) + 1e-14 * abs(lt[-1]))
-            below = (w < wK) & (w > 0)
-            if np.any(below):
-                kK, iK, tK = invert_table(kt, lt, dt, np.array([wK]))
-                s = np.where(below, w / wK, 1.0)
-                k = np.where(below, kK[0] * np.sqrt(s), k)
-                i, t = np.where(below, iK[0], i), np.where(below, tK[0], t)
-        ok = np.isfinite(k)
-        H = np.zeros(f.shape, complex)
-        if np.any(ok):
-            i, t, kk, s = i[ok], t[ok], k[ok], s[ok]
-            lerp = lambda v: v[i] + t * (v[i + 1] - v[i])
-            wK_ok = w[ok] / s
-            D = 2.0 * wK_ok * lerp(dt / (2.0 * np.sqrt(np.maximum(lt, 1e-300)))) * s ** 1.5   # 2 w c_g
-            prod = ex["prod"]              # (n+1, 16): products of the PROBES rows
-            # A0 below w_K: phi_u ~ k ~ s^1/2, phi_w constant
-            puw = lerp(prod[:, col_u]) * s ** ((1 + n_u) / 2)
-            pww = lerp(prod[:, col_w]) * s ** (n_u / 2)
-            if load == "pin":
-                ring = special.j1(kk * radius_m)
-                puw, pww = puw * ring, pww * ring
-            alpha = loss_factor * w[ok] ** 2 / np.abs(D)          # eta w / (2 |c_g|)
-            if quantity == "strain":
-                if sensor_length_m > 0:
-                    L = sensor_length_m
-                    x1, x0 = distance_m + L / 2, distance_m - L / 2
-                    sp = (spatial(kk, x1, source, "u") * np.exp(-alpha * x1)
-                          - spatial(kk, x0, source, "u") * np.exp(-alpha * x0)) / L
-                else:
-                    sp = (spatial(kk, distance_m, source, "du")
-                          - alpha * spatial(kk, distance_m, source, "u")) * np.exp(-alpha * distance_m)
-                H[ok] = puw * sp / D
-            else:
-                Hw = 1j * pww * spatial(kk, distance_m, source, "w") * np.exp(-alpha * distance_m) / D
-                ww = w[ok]
-                H[ok] = {"displacement": Hw, "velocity": -1j * ww * Hw,
-                         "acceleration": -ww * ww * Hw}[quantity]
-        res[label] = H
-    return res
-
 
 def _dc_bin_mean(R, half_width: float, log_tail: bool, n: int = 24, decades: float = 1.5) -> float:
     """(1 / a) int_0^a Re R(f) df, a = half_width, for R integrable but possibly singular
@@ -300,8 +125,6 @@ def _dc_bin_mean(R, half_width: float, log_tail: bool, n: int = 24, decades: flo
 BAND_RATIO = 400.0
 N_LOW_BINS = 32       # bins integrated by Gauss-Legendre (singular spectra at f -> 0)
 PERIOD_RECORDS = 32.0  # low-part FFT period, records: wrap-around of ~1/t tails ~ (pi^2/12)(1/32)^2
-N_CHEB_MAX = 256      # Chebyshev nodes for lambda (eigenvalues only)
-N_VEC = 64            # nodes for the eigenvector (surface amplitude) series
 
 
 def _bands(laminate, direction_deg, fmax, f_floor, modes, order, elements_per_ply):
@@ -319,7 +142,7 @@ def _bands(laminate, direction_deg, fmax, f_floor, modes, order, elements_per_pl
             f_lo = 0.0
         model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
                            fmax_hz=f_hi)
-        out.append((f_lo, f_hi, _mode_data(model, TWO_PI * f_hi, modes, strict=not out)))
+        out.append((f_lo, f_hi, mode_data(model, TWO_PI * f_hi, modes, strict=not out)))
         if f_lo == 0.0:
             return out
         f_hi = f_lo
@@ -331,7 +154,7 @@ def _transfer_bands(bands, f, distance_m, quantity, sensor_length_m, source,
     for f_lo, f_hi, data in bands:
         sel = (f > f_lo) & (f <= f_hi)
         if np.any(sel):
-            H[sel] = sum(_transfer_from_data(data, f[sel], distance_m, quantity, sensor_length_m,
+            H[sel] = sum(transfer_from_data(data, f[sel], distance_m, quantity, sensor_length_m,
                                              source, near_field, loss_factor).values(),
                          np.zeros(int(sel.sum()), complex))
     return H
@@ -359,13 +182,13 @@ def mode_transfer(laminate: Laminate, distance_m: float, frequency_hz, *, direct
     ``loss_factor`` eta: moduli C (1 + i eta), each mode attenuated by
     exp(-eta w x / (2 |c_g|)) (first order in eta; A0's near field too).
     """
-    _check_common(distance_m, quantity, sensor_length_m, source)
-    _check_load(load, actuator_radius_m, source_face, sensor_face, source, near_field)
+    check_common(distance_m, quantity, sensor_length_m, source)
+    check_load(load, actuator_radius_m, source_face, sensor_face, source, near_field)
     f = np.atleast_1d(np.asarray(frequency_hz, float))
     data = _cached_mode_data(laminate, float(direction_deg), order, elements_per_ply,
                              _model_top(max(float(f.max()), fmax_hz or 0.0)),
                              None if modes is None else tuple(sorted(modes)))
-    return _transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source, near_field,
+    return transfer_from_data(data, f, distance_m, quantity, sensor_length_m, source, near_field,
                                float(loss_factor), load, float(actuator_radius_m), source_face, sensor_face)
 
 
@@ -391,19 +214,6 @@ def mode_velocities(laminate: Laminate, frequency_hz, *, direction_deg: float = 
     return out
 
 
-def _check_load(load, radius_m, source_face, sensor_face, source, near_field) -> None:
-    if load not in LOADS:
-        raise SafeError(f"load {load!r}: expected one of {LOADS}")
-    for name, face in (("source_face", source_face), ("sensor_face", sensor_face)):
-        if face not in FACES:
-            raise SafeError(f"{name} {face!r}: expected one of {FACES}")
-    if load == "pin" and not (source == "point" and np.isfinite(radius_m) and radius_m > 0):
-        raise SafeError(f"pin load: expected a point source with actuator radius > 0 m, got "
-                        f"source={source!r}, radius={radius_m!r}")
-    if near_field and (load, source_face) != ("normal", "top"):
-        raise SafeError("near_field: only for a normal force on the top face")
-
-
 def _model_top(fmax_hz: float) -> float:
     """``fmax_hz`` rounded up to two significant digits (the cache key of a SAFE model)."""
     e = 10.0 ** (np.floor(np.log10(fmax_hz)) - 1)
@@ -413,11 +223,11 @@ def _model_top(fmax_hz: float) -> float:
 @functools.lru_cache(maxsize=32)
 def _cached_mode_data(laminate: Laminate, direction_deg: float, order, elements_per_ply, fmax_hz: float,
                       modes):
-    """``_mode_data`` of the SAFE model along ``direction_deg`` up to ``fmax_hz`` (cached:
+    """``mode_data`` of the SAFE model along ``direction_deg`` up to ``fmax_hz`` (cached:
     every distance, face and load of one direction reuses it)."""
     model = safe_model(laminate, direction_deg, order=order, elements_per_ply=elements_per_ply,
                        fmax_hz=fmax_hz)
-    return _mode_data(model, TWO_PI * fmax_hz, modes)
+    return mode_data(model, TWO_PI * fmax_hz, modes)
 
 
 def transient_response(laminate: Laminate, distance_m: float, force: ForceHistory, fs_hz: float,
@@ -434,7 +244,7 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     No sensor high-pass: apply the sensor chain's filter to the record. See the module
     docstring for conventions, near field, DC handling, padding and the point-source model.
     """
-    _check_common(distance_m, quantity, sensor_length_m, source)
+    check_common(distance_m, quantity, sensor_length_m, source)
     if not (np.isfinite(loss_factor) and 0.0 <= loss_factor < 1.0):
         raise SafeError(f"loss factor {loss_factor!r}: expected 0 <= eta < 1")
     if not (fs_hz > 0 and int(n_samples) >= 1):
