@@ -220,6 +220,21 @@ class RunStore:
             _write_tree(cfg.create_group(key), parsed)
         f.flush()
 
+    def write_config_text(self, name: str, text: str) -> None:
+        """Store (or replace) one more text under ``/config/<name>``, e.g. the calibration
+        sheet the shots were recorded with (``calibration_csv``); unchanged text: no write."""
+        if self.config_text(name) == text:
+            return
+        cfg = self._normal()["config"]
+        if name in cfg:
+            del cfg[name]
+        cfg.create_dataset(name, data=text, dtype=h5py.string_dtype())
+        self._f.flush()
+
+    def config_text(self, name: str) -> str:
+        """The text under ``/config/<name>`` ('' if absent)."""
+        return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
+
     def specimen_toml(self) -> str:
         return _text(self._f["config/specimen_toml"][()]) if "config/specimen_toml" in self._f else ""
 
