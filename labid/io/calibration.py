@@ -28,6 +28,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable
 
+from drivers.nidaq import TedsInfo, physical_name, read_teds
+
 from ..errors import UserError
 from ..rigtypes import Rig
 from .units import QUANTITY, sensitivity_si
@@ -178,21 +180,31 @@ def sheet_path(rig: Rig) -> Path | None:
     return base / p
 
 
-Teds = Callable[[object], "object | None"]
+#: (device spec, channel config, channel index) -> drivers.nidaq.TedsInfo or None
+Teds = Callable[[object, object, int], "TedsInfo | None"]
+
+
+def nidaq_teds(nidaqmx_module=None) -> Teds:
+    """A TEDS reader for ``calibrate``: ``drivers.nidaq.read_teds`` on each channel's DAQmx
+    physical channel (as ``NiDaqDevice`` names it)."""
+    def teds(dev, c, index):
+        daq = dev.daq_device or next((x.physical.split("/")[0] for x in dev.channels if "/" in x.physical), "Dev1")
+        return read_teds(physical_name(daq, c, index), c.kind, nidaqmx_module=nidaqmx_module)
+    return teds
 
 
 def calibrate(rig: Rig, teds: Teds | None = None) -> tuple[Rig, Calibration | None]:
     """The rig with its channels' sensitivities from the calibration sheet (and TEDS where
-    ``teds(channel_config)`` returns a ``drivers.nidaq.TedsInfo``), and the calibration used
-    (None when the rig has neither)."""
+    ``teds(device, channel, index)`` returns a ``drivers.nidaq.TedsInfo``), and the
+    calibration used (None when the rig has neither)."""
     path = sheet_path(rig)
     cal = read_sheet(path, rig) if path is not None else Calibration(None, "")
     entries = dict(cal.entries)
     notes = list(cal.notes)
     if teds is not None:
         for d in rig.devices:
-            for c in d.channels:
-                info = teds(c)
+            for i, c in enumerate(d.channels):
+                info = teds(d, c, i)
                 if info is None or info.sensitivity is None:
                     continue
                 sheet = entries.get(c.name)
