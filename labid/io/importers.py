@@ -232,7 +232,7 @@ def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specim
                 raise UserError(f"unit {u!r}: not recognised; expected one of {', '.join(known_units())}",
                                 file=str(c.file), key=c.qualified)
             if not unit_matches(ch.kind, q[0]):
-                raise UserError(f"unit {u!r} is a {q[0]} but {t} is a {ch.kind} channel; expected "
+                raise UserError(f"unit {u!r} measures {q[0]} but {t} is a {ch.kind} channel; expected "
                                 f"{QUANTITY[ch.kind]} or volts", file=str(c.file), key=c.qualified)
             factors[(t, i)] = q
             units_used[t] = u
