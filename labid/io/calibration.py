@@ -125,7 +125,7 @@ def parse_sheet(text: str, src: str = "<sheet>", rig: Rig | None = None) -> Cali
     head = [h.strip().lower() for h in rows[0]]
     missing = [c for c in COLUMNS if c not in head]
     if missing:
-        raise UserError(f"header {','.join(rows[0])}: missing column(s) {missing}; expected {','.join(COLUMNS)}",
+        raise UserError(f"missing column(s) {missing}; expected the header {','.join(COLUMNS)}",
                         file=src, key="header")
     col = {c: head.index(c) for c in COLUMNS}
     kinds = {c.name: c.kind for d in rig.devices for c in d.channels} if rig is not None else {}
@@ -156,7 +156,7 @@ def parse_sheet(text: str, src: str = "<sheet>", rig: Rig | None = None) -> Cali
                             "mV/N, V/N or V/V", file=src, key=f"{where}.unit")
         quantity, si = conv
         if ch in kinds and QUANTITY[kinds[ch]] != quantity:
-            raise UserError(f"value {get['unit']!r}: a {quantity} sensitivity for the {kinds[ch]} channel "
+            raise UserError(f"value {get['unit']!r}: a sensitivity to {quantity} for the {kinds[ch]} channel "
                             f"{ch!r}; expected V per {QUANTITY[kinds[ch]]} unit", file=src, key=f"{where}.unit")
         cal = _date(get["calibration_date"], src, f"{where}.calibration_date")
         due = _date(get["due_date"], src, f"{where}.due_date")
