@@ -1,5 +1,9 @@
 """The one place the lab panel, the command line and the report reach run files and workflows.
 
+Over 500 lines on purpose: it is the single facade every front-end imports (the architecture
+rule), in sections (run file, acquisition, analysis, identification, import/export); each
+function is a thin call into its workflow module.
+
 Front-ends (``labid.gui``, ``labid.cmd_*``, ``labid.report``, ``labid.demo``)
 call these functions; they never open a ``RunStore`` or call ``engine``
 themselves (except ``labid dispersion`` and ``labid modes``, which touch no

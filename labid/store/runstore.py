@@ -1,4 +1,5 @@
 """The run store: one HDF5 file per test session (h5py), crash-safe shot by shot.
+(Just over 500 lines, most of it this schema and the crash-safety notes; issue 15 splits the store.)
 
 Schema ``labid_schema = 1`` (NeXus-style ``NX_class`` and ``units`` attributes)::
 
@@ -221,18 +222,14 @@ class RunStore:
         f.flush()
 
     def write_config_text(self, name: str, text: str) -> None:
-        """Store (or replace) one more text under ``/config/<name>``, e.g. the calibration
-        sheet the shots were recorded with (``calibration_csv``); unchanged text: no write."""
-        if self.config_text(name) == text:
-            return
-        cfg = self._normal()["config"]
-        if name in cfg:
-            del cfg[name]
-        cfg.create_dataset(name, data=text, dtype=h5py.string_dtype())
-        self._f.flush()
+        """Store or replace the text ``/config/<name>`` (e.g. ``calibration_csv``, the calibration sheet)."""
+        if self.config_text(name) != text:
+            self._normal()["config"].pop(name, None)
+            self._f["config"][name] = text
+            self._f.flush()
 
     def config_text(self, name: str) -> str:
-        """The text under ``/config/<name>`` ('' if absent)."""
+        """The text ``/config/<name>`` ('' if absent)."""
         return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
 
     def specimen_toml(self) -> str:
