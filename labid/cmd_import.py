@@ -1,5 +1,7 @@
-"""``labid import FILES... --rig RIG.toml --specimen SPEC.toml --out RUN.h5``: recordings of
-other systems (NI TDMS, UFF58, WAV, MAT, CSV) into a run file, as shots of the rig's channels.
+"""``labid import FILES..``: recordings of other systems (TDMS, UFF58, WAV, MAT, CSV) into a run file.
+
+``labid import FILES... --rig RIG.toml --specimen SPEC.toml --out RUN.h5`` stores them as
+shots of the rig's channels.
 
 ``--map 'file_channel=rig_channel,...'`` says which channel of the files is which rig channel
 (``FILE:channel`` names a channel of one file); several files on a common trigger make one

@@ -150,7 +150,7 @@ def test_csv_time_column_gives_rate_and_pretrigger_header_gives_units(tmp_path):
     f, a = np.sin(t / 50.0), np.cos(t / 70.0)
     path = tmp_path / "hit.csv"
     write_csv(path, ["time_us", "force [N]", "acc (m/s^2)"], [t, f, a], comment="exported by a scope")
-    res = import_records([path], "default", "cfrp", tmp_path / "run.h5", "force [N]=force,acc (m/s^2)=acc3")
+    res = import_records([path], "default", "cfrp", tmp_path / "run.h5", "force [N]=force,acc=acc3")
     assert (res.rate_hz, res.samples, res.pretrigger) == (10000.0, 400, 40)
     assert res.units == {"force": "N", "acc3": "m/s^2"}
     rec = services.shots(tmp_path / "run.h5", "hammer")[0]

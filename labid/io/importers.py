@@ -12,7 +12,8 @@ Shots. Each map key is looked up in every file, in the order given: the n-th rec
 every mapped channel makes shot n. Several files on a common trigger (one channel or a
 few each) make one shot; files holding the same channels (one hit each), or a file of
 several records of each channel (UFF58 data sets, TDMS groups), make several shots. A key
-``FILE:channel`` (FILE: a file's name or stem) looks in that file only.
+``FILE:channel`` (FILE: a file's name or stem) looks in that file only; a CSV column is
+named by its header with or without its unit suffix (``force [N]`` or ``force``).
 
 Rate, pre-trigger, units: from the file where it states them, else from ``--rate``,
 ``--pretrigger``, ``--units`` (a file and an option that disagree are refused), else the
@@ -41,7 +42,7 @@ from ..rig import Rig, load_rig
 from ..specimen import Specimen, load_specimen
 from ..store import RunStore
 from . import calibration as calib
-from .readers import Column, read_columns
+from .readers import Column, read_columns, split_header
 from .units import QUANTITY, known_units, parse_unit, unit_matches
 
 #: relative tolerance between a file's sampling rate and the rig's (files keep 6 digits or fewer)
@@ -96,7 +97,7 @@ def _find(key: str, files: Sequence[Path], columns: dict[Path, list[Column]]) ->
             scope, name = hit, rest
     out = []
     for f in scope:
-        out += [c for c in columns[f] if name in (c.qualified, c.name)]
+        out += [c for c in columns[f] if name in (c.qualified, c.name, split_header(c.name)[0])]
     return out
 
 
