@@ -47,6 +47,9 @@ DC-only and reject the coupling property). A voltage channel with
 Overload. A channel is flagged if DAQmx lists it in ``overloaded_chans`` or
 if any sample reaches 99.9 % of its range (clipping at the ADC limit).
 
+TEDS. ``read_teds(physical, kind)`` reads a TEDS sensor's identity and sensitivity
+(``labid.io.calibration`` uses it on the NI backend; the calibration sheet wins).
+
 Errors. Every DAQmx failure becomes one line, an
 :class:`~drivers.protocol.AcquisitionError` subclass: :class:`DriverMissing`
 (no NI-DAQmx installed: suggests ``--backend mock``), :class:`NoTrigger`
@@ -57,7 +60,7 @@ Errors. Every DAQmx failure becomes one line, an
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from types import ModuleType
 from typing import Any
 
@@ -67,6 +70,8 @@ from drivers.protocol import AcquisitionError, ChannelConfig, NoTrigger, Record,
 
 #: standard acceleration of gravity, m/s^2 (exact by definition, CGPM 1901)
 G0 = 9.80665
+#: pound-force in N (exact by definition)
+LBF = 4.4482216152605
 #: fraction of the range from which a sample counts as clipped
 CLIP_FRACTION = 0.999
 
@@ -266,9 +271,7 @@ class NiDaqDevice:
             raise DeviceConfigError(f"{where}: trigger slope {trigger.slope!r}; expected rising or falling")
 
     def _physical_name(self, c: ChannelConfig, index: int) -> str:
-        if not c.physical:
-            return f"{self.device}/ai{index}"
-        return c.physical if "/" in c.physical else f"{self.device}/{c.physical}"
+        return physical_name(self.device, c, index)
 
     @staticmethod
     def _to_channel_units(c: ChannelConfig, volts: float) -> float:
@@ -364,6 +367,66 @@ class NiDaqDevice:
         if code is not None:
             return DaqmxError(f"{who}: DAQmx error {code} while {doing}: {_first_line(exc)}", code)
         return DaqmxError(f"{who}: {type(exc).__name__} while {doing}: {_first_line(exc)}")
+
+
+def physical_name(device: str, c: ChannelConfig, index: int) -> str:
+    """The DAQmx physical channel of ``c`` (the ``index``-th channel) on ``device``."""
+    if not c.physical:
+        return f"{device}/ai{index}"
+    return c.physical if "/" in c.physical else f"{device}/{c.physical}"
+
+
+@dataclass(frozen=True)
+class TedsInfo:
+    """What a TEDS sensor (IEEE 1451.4) tells through DAQmx: manufacturer id, model,
+    serial and version numbers, and the sensitivity in V per SI unit (V/(m/s^2), V/N;
+    None for a voltage channel). The calibration date sits in the template bit stream,
+    which DAQmx does not decode: it is not read."""
+
+    physical: str
+    manufacturer_id: int
+    model: int
+    serial: int
+    version: str
+    sensitivity: float | None
+
+
+def read_teds(physical: str, kind: str, *, nidaqmx_module: Any | None = None) -> TedsInfo | None:
+    """The TEDS of the sensor on ``physical`` (None when there is none, or no NI-DAQmx).
+
+    Calls ``nidaqmx.system.PhysicalChannel(physical).configure_teds()`` (find the sensor),
+    reads ``teds_mfg_id``, ``teds_model_num``, ``teds_serial_num``, ``teds_version_num``/
+    ``teds_version_letter``, then the sensitivity DAQmx took from TEDS through a
+    temporary task: ``add_teds_ai_accel_chan`` -> ``ai_accel_sensitivity`` (mV/g or V/g),
+    ``add_teds_ai_force_iepe_chan`` -> ``ai_force_iepe_sensor_sensitivity`` (mV/N or
+    mV/lb)."""
+    try:
+        nx = nidaqmx_module if nidaqmx_module is not None else _load_nidaqmx()
+    except DriverMissing:
+        return None
+    C = nx.constants
+    try:
+        pc = nx.system.PhysicalChannel(physical)
+        pc.configure_teds()
+        info = dict(manufacturer_id=int(pc.teds_mfg_id), model=int(pc.teds_model_num),
+                    serial=int(pc.teds_serial_num),
+                    version=f"{pc.teds_version_num}{pc.teds_version_letter}")
+        sens = None
+        if kind in ("accelerometer", "force"):
+            with nx.Task("labid-teds") as task:
+                if kind == "accelerometer":
+                    ch = task.ai_channels.add_teds_ai_accel_chan(
+                        physical, units=C.AccelUnits.METERS_PER_SECOND_SQUARED)
+                    per_g = 1e-3 if ch.ai_accel_sensitivity_units == C.AccelSensitivityUnits.MILLIVOLTS_PER_G else 1.0
+                    sens = float(ch.ai_accel_sensitivity) * per_g / G0
+                else:
+                    ch = task.ai_channels.add_teds_ai_force_iepe_chan(physical, units=C.ForceUnits.NEWTONS)
+                    mv_lb = C.ForceIEPESensorSensitivityUnits.MILLIVOLTS_PER_POUND
+                    per_n = 1e-3 / LBF if ch.ai_force_iepe_sensor_sensitivity_units == mv_lb else 1e-3
+                    sens = float(ch.ai_force_iepe_sensor_sensitivity) * per_n
+    except nx.errors.Error:
+        return None
+    return TedsInfo(physical=physical, sensitivity=sens, **info)
 
 
 class _ErrorMap:

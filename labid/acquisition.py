@@ -26,6 +26,7 @@ from drivers.protocol import AcquisitionError, NoTrigger, Record
 from mock_hw.rig import SimulatedDevice
 
 from .errors import UserError
+from .io.calibration import calibrate, nidaq_teds, status as calibration_status
 from .rig import Rig, load_rig
 from .store import RunStore
 from .specimen import BUILTIN as SPECIMENS, Specimen, load_specimen
@@ -105,6 +106,8 @@ class AcquisitionSession:
         self.specimen = specimen if isinstance(specimen, Specimen) else load_specimen(specimen)
         if backend not in BACKENDS:
             raise UserError(f"value {backend!r}: expected one of {list(BACKENDS)}", key="--backend")
+        teds = nidaq_teds() if backend == "nidaqmx" and device_factory is None else None
+        self.rig, self.calibration = calibrate(self.rig, teds)     # sheet and TEDS sensitivities
         self.store, self.backend, self.effects, self.seed = store, backend, effects, int(seed)
         self.device_factory = device_factory
         self.rig.check_specimen(self.specimen.length, self.specimen.width)
@@ -198,6 +201,8 @@ class AcquisitionSession:
                 report(dict(kind=kind, index=index, total=total, status="rejected",
                             attempt=attempt, message=f"{problem}; redoing the shot"))
                 continue
+            if self.calibration is not None:
+                rec.meta.update(self.calibration.meta(c.name for c in rec.channels))
             name = self.store.append_shot(rec, kind)
             report(dict(kind=kind, index=index, total=total, status="recorded", attempt=attempt,
                         shot=name, message=f"recorded {name}"))
@@ -228,6 +233,8 @@ class AcquisitionSession:
         if total:
             want = {k: max(0, want[k] - before[k]) for k in KINDS}
         self.store.write_config(specimen_text(self.specimen), self.rig.text)
+        if self.calibration is not None and self.calibration.text:
+            self.store.write_config_text("calibration_csv", self.calibration.text)
         events: list[dict] = []
 
         def report(ev: dict) -> None:
@@ -272,6 +279,7 @@ class AcquisitionSession:
             "gave_up": gave_up,
             "interrupted": interrupted,
             "complete": not interrupted and all(len(recorded[k]) == want[k] for k in KINDS),
+            "calibration": calibration_status(self.calibration),
         }
 
 

@@ -26,11 +26,13 @@ COMMANDS: dict[str, str] = {
     "dispersion": "guided-wave dispersion curves (SAFE)",
     "modes": "free-free natural frequencies of the plate",
     "acquire": "headless acquisition session (appends to RUN.h5)",
+    "import": "recordings of other systems (TDMS, UFF58, WAV, MAT, CSV) into a run file",
     "analyze": "resonance peaks and CWT group velocities of a run -> features",
     "identify": "identify elastic constants from a features file",
     "diagnose": "sim-to-real gap diagnosis of a features file",
     "demo": "the whole job end to end on the simulated rig",
     "report": "self-contained HTML report of a run",
+    "export": "a run's FRFs, time data and modes as UFF, its results as CSV tables",
     "gui": "the lab panel",
 }
 ALL = "*"

@@ -65,6 +65,10 @@ def run(args) -> dict:
 
     rig, specimen = load_rig(args.rig), load_specimen(args.specimen)   # errors before any file
     rig.check_specimen(specimen.length, specimen.width)
+    cal = services.calibration_status(rig)              # the calibration sheet, said before any shot
+    for note in cal["notes"]:
+        sys.stderr.write(f"labid acquire: {note}\n")
+    services.warn_calibration(cal, prefix="labid acquire")
     out = Path(args.out)
     existed = out.exists()
     old = signal.signal(signal.SIGINT, on_sigint)

@@ -27,6 +27,7 @@ def register(sub) -> None:
     p.add_argument("--plot", metavar="PNG", help="write a figure of where the gap lies")
     p.add_argument("--alpha", type=float, default=0.01,
                    help="false-alarm rate of the chi^2 gap test (default 0.01)")
+    p.add_argument("--csv", metavar="DIR", help="also write the diagnosis tables as DIR/diagnosis_*.csv")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -50,4 +51,7 @@ def run(args) -> dict:
                              f"gap_after {e['gap_after']:.2f} score {e['score']:.2f}\n")
     if note := services.store_for_features(args.features, "diagnosis", res):
         sys.stderr.write(f"labid diagnose: {note}\n")
+    if args.csv:
+        for f in services.write_result_tables(res, "diagnosis", args.csv):
+            sys.stderr.write(f"labid diagnose: wrote {f}\n")
     return res

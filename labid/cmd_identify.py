@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import services
+from . import cluster, services
 from .cmdutil import add_json_option
 from .errors import UserError
 from .identification import (METHODS, load_problem, multi_start, load_features,
@@ -34,16 +34,28 @@ def register(sub) -> None:
     p.add_argument("--starts", type=int, default=0, metavar="N",
                    help="also run a multi-start study from N random initial guesses (within +-50%% of the start)")
     p.add_argument("--workers", type=int, default=2, metavar="W", help="processes for --starts (default 2)")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="run --starts on a Dask distributed scheduler")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run --starts on a Dask distributed scheduler (pip install 'labid[cluster]'); "
+                        "checked before any fitting")
     p.add_argument("--plot", metavar="PATH", help="scatter plot of the multi-start study (PNG)")
     p.add_argument("--seed", type=int, default=0, help="random seed of --starts and --mcmc")
     p.add_argument("--mcmc", type=int, default=0, metavar="STEPS",
                    help="also sample the full posterior by MCMC (emcee) with STEPS steps per walker")
+    p.add_argument("--csv", metavar="DIR", help="also write the constants as DIR/constants.csv")
     add_json_option(p)
     p.set_defaults(func=_run)
 
 
 def _run(args: argparse.Namespace) -> dict:
+    client = cluster.connect(args.scheduler, args.starts)   # before any fitting (issue 16)
+    try:
+        return _identify(args, client)
+    finally:
+        if client is not None:
+            client.close()
+
+
+def _identify(args: argparse.Namespace, client) -> dict:
     problem = load_problem(args.features)
     names = None
     if args.params:
@@ -70,25 +82,9 @@ def _run(args: argparse.Namespace) -> dict:
         st0 = start_values(problem, est.names, start)
         starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
         doc = load_features(args.features)
-        executor = None
-        client = None
-        if args.scheduler:
-            try:
-                from dask.distributed import Client  # noqa: PLC0415
-            except ImportError:
-                raise UserError("dask.distributed is not installed (pip install 'dask[distributed]')",
-                                key="--scheduler") from None
-            try:
-                client = Client(args.scheduler, timeout="5s")
-            except (OSError, TimeoutError) as e:
-                raise UserError(f"cannot reach scheduler {args.scheduler!r}: {e}", key="--scheduler") from None
-            executor = client.get_executor()
-        try:
-            results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
-                                  prior=args.prior, executor=executor, max_workers=args.workers)
-        finally:
-            if client is not None:
-                client.close()
+        executor = client.get_executor() if client is not None else None
+        results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
+                              prior=args.prior, executor=executor, max_workers=args.workers)
         out["multi_start"] = results
         if args.plot:
             plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
@@ -96,6 +92,9 @@ def _run(args: argparse.Namespace) -> dict:
         _print(out, est.names)
     if note := services.store_for_features(args.features, "identification", out):
         sys.stderr.write(f"labid identify: {note}\n")
+    if args.csv:
+        for f in services.write_result_tables(out, "identification", args.csv):
+            sys.stderr.write(f"labid identify: wrote {f}\n")
     return out
 
 

@@ -274,7 +274,11 @@ def _source(tab: Mapping, key: str, src: str, kinds: tuple[str, ...], default_ki
 
 def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "") -> Rig:
     """Build and validate a Rig from a parsed TOML table."""
-    _keys(doc, {"name", "session", "hammer", "wave_source", "supports", "simulation", "devices"}, "", src)
+    _keys(doc, {"name", "session", "hammer", "wave_source", "supports", "simulation", "devices", "calibration"},
+          "", src)
+    cal = doc.get("calibration")
+    if cal is not None and (not isinstance(cal, str) or not cal.strip()):
+        raise _err(src, "calibration", f"value {cal!r}: expected the path of a calibration sheet (CSV)")
     roles = _device_roles(doc, src)
     ham_tab = _table(doc, "hammer", src, required="hammer" in roles)
     ham = _source(ham_tab, "hammer", src, ("hammer",), "hammer") if ham_tab else None
@@ -338,7 +342,7 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
                hits=_int(sess, "hits", "session.", src, default=5, lo=0),
                waves=_int(sess, "waves", "session.", src, default=3, lo=0),
                max_retries=_int(sess, "max_retries", "session.", src, default=5, lo=0),
-               text=text, source=src)
+               text=text, source=src, calibration=cal)
 
 
 def _device_roles(doc: Mapping[str, Any], src: str) -> set[str]:

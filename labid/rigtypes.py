@@ -154,6 +154,7 @@ class Rig:
     max_retries: int = 5
     text: str = field(default="", repr=False, compare=False)
     source: str = "<inline>"
+    calibration: str | None = None   # the calibration sheet (CSV) as the file names it (labid.io.calibration)
 
     def device(self, role: str) -> DeviceSpec | None:
         """The device recording shots of ``role`` ('hammer' or 'wave'), if any."""

@@ -1,5 +1,9 @@
 """The one place the lab panel, the command line and the report reach run files and workflows.
 
+Over 500 lines on purpose: it is the single facade every front-end imports (the architecture
+rule), in sections (run file, acquisition, analysis, identification, import/export); each
+function is a thin call into its workflow module.
+
 Front-ends (``labid.gui``, ``labid.cmd_*``, ``labid.report``, ``labid.demo``)
 call these functions; they never open a ``RunStore`` or call ``engine``
 themselves (except ``labid dispersion`` and ``labid modes``, which touch no
@@ -15,6 +19,10 @@ Workflows: ``acquire`` (+ ``parse_effects``, ``check_daq``,
 ``spectra_of_run``, ``toggle_peak``), ``run_identification``,
 ``run_diagnosis``, ``store_for_features`` (a CLI result into the run its
 features came from).
+Import, export, calibration (``labid.io``): ``import_records``, ``export_run``,
+``write_result_tables``, ``calibration_status`` (a rig's sheet, for the panel),
+``run_calibration`` (what a run's shots were recorded with, for the report),
+``warn_calibration`` (overdue calibrations, once per session).
 Display (``labid.display``, re-exported): ``spectrum_indicator``,
 ``average_spectrum``, ``scalogram``, ``model_group_velocity``,
 ``model_frequencies``, ``parameters_of``.
@@ -43,7 +51,9 @@ from .display import (Scalogram, average_spectrum, model_frequencies, model_grou
                       scalogram)
 from .errors import Cancelled, UserError
 from .features import features_text
-from .rig import Rig
+from .io import calibration as calib
+from .io import exporters, importers
+from .rig import Rig, load_rig
 from .specimen import Specimen, load_specimen, specimen_from_dict
 from .store import KINDS, RunStore, decode_result
 
@@ -60,6 +70,9 @@ __all__ = [
     # identification and diagnosis
     "select_data", "load_features_file", "specimen_for_features", "parse_start", "cancellable",
     "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
+    # import, export, calibration (labid.io)
+    "import_records", "export_run", "write_result_tables", "calibration_status", "run_calibration",
+    "warn_calibration",
     # display (labid.display)
     "Scalogram", "average_spectrum", "scalogram", "model_group_velocity", "model_frequencies", "parameters_of",
 ]
@@ -490,3 +503,50 @@ def store_for_features(features_file: str | Path, name: str, result: Mapping) ->
     except (UserError, OSError) as e:
         return f"warning: result not stored in the run file: {e}"
     return f"result stored in {run} (/results/{name})"
+
+
+# ============================================================== import, export, calibration (issue 16)
+def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specimen | str, out: str | Path,
+                   map_text: str | None = None, **options) -> dict:
+    """Recordings of other systems into the run ``out`` (``labid import``; options and rules:
+    ``labid.io.importers.import_records``). Returns its summary dict."""
+    return importers.import_records(files, rig, specimen, out, map_text, **options).to_dict()
+
+
+def export_run(run: str | Path, *, uff: str | Path | None = None, csv_dir: str | Path | None = None,
+               binary: bool = True) -> dict:
+    """Write a run's FRFs, time data and picked modes as UFF (58, 55, 15) and its features,
+    constants and diagnosis as CSV tables (``labid export``; ``labid.io.exporters``)."""
+    return exporters.export_run(run, uff=uff, csv_dir=csv_dir, binary=binary)
+
+
+def write_result_tables(result: Mapping, what: str, csv_dir: str | Path) -> list[str]:
+    """CSV tables of one result: ``what`` 'identification' (constants.csv) or 'diagnosis'
+    (diagnosis_*.csv); returns the paths written (``labid identify/diagnose --csv``)."""
+    return exporters.result_tables(result, what, csv_dir)
+
+
+def calibration_status(rig: Rig | str | None) -> dict:
+    """The calibration a rig would be used with (its sheet; TEDS is read at acquisition
+    only): ``{sheet, entries: [{channel, serial, sensitivity, ..., due_date, source}],
+    overdue: [one line each], notes}``, for the panel. UserError on a bad sheet."""
+    r = rig if isinstance(rig, Rig) else load_rig(rig)
+    return calib.status(calib.calibrate(r)[1])
+
+
+def run_calibration(run: str | Path) -> dict:
+    """The calibration a run's shots were recorded with, for the report: the sheet text
+    (``/config/calibration_csv``), per channel the entry of its last shot (``{serial,
+    sensitivity, calibration_date, due_date, source}``), and one line per channel that was
+    recorded past its calibration's due date."""
+    with RunStore(run, "r") as st:
+        sheet = st.config_text("calibration_csv")
+        metas = [m for k in KINDS for m in st.metas(k)]
+    return {"sheet_csv": sheet, "channels": calib.from_shot_meta(metas), "overdue": calib.overdue_in_metas(metas)}
+
+
+def warn_calibration(status: Mapping | None, prefix: str = "labid", write: Callable[[str], Any] | None = None) -> list[str]:
+    """Write each overdue calibration of a ``calibration_status`` once per process (the
+    session: the panel calls it when a rig is loaded, the CLI on each command)."""
+    lines = list((status or {}).get("overdue") or [])
+    return calib.warn_lines(lines, (status or {}).get("sheet"), prefix=prefix, write=write)

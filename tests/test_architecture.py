@@ -9,7 +9,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("engine", "drivers", "mock_hw", "labid")
 #: front-ends reach run files and workflows through labid.services only
 FRONT_ENDS = ("labid.gui", "labid.report", "labid.demo", "labid.cmd_acquire", "labid.cmd_analyze",
-              "labid.cmd_report", "labid.cmd_demo", "labid.cmd_gui")
+              "labid.cmd_report", "labid.cmd_demo", "labid.cmd_gui", "labid.cmd_import", "labid.cmd_export")
 
 
 def modules() -> dict[str, Path]:

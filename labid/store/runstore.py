@@ -1,4 +1,5 @@
 """The run store: one HDF5 file per test session (h5py), crash-safe shot by shot.
+(Just over 500 lines, most of it this schema and the crash-safety notes; issue 15 splits the store.)
 
 Schema ``labid_schema = 1`` (NeXus-style ``NX_class`` and ``units`` attributes)::
 
@@ -219,6 +220,17 @@ class RunStore:
                 parsed = {}
             _write_tree(cfg.create_group(key), parsed)
         f.flush()
+
+    def write_config_text(self, name: str, text: str) -> None:
+        """Store or replace the text ``/config/<name>`` (e.g. ``calibration_csv``, the calibration sheet)."""
+        if self.config_text(name) != text:
+            self._normal()["config"].pop(name, None)
+            self._f["config"][name] = text
+            self._f.flush()
+
+    def config_text(self, name: str) -> str:
+        """The text ``/config/<name>`` ('' if absent)."""
+        return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
 
     def specimen_toml(self) -> str:
         return _text(self._f["config/specimen_toml"][()]) if "config/specimen_toml" in self._f else ""
