@@ -1,7 +1,7 @@
 """The headless command line: ``labid COMMAND ...`` (CONTRACT section 3).
 
 Exit codes: 0 success, 2 user error (one line on stderr, no traceback),
-1 internal failure. Each command lives in ``labid/cmd_<name>.py`` and exposes
+1 internal failure, 3 a fit inconsistent with its data under ``--strict``. Each command lives in ``labid/cmd_<name>.py`` and exposes
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> dict``.
 The returned dict is the ``--json`` result.
 
@@ -16,7 +16,7 @@ import importlib
 import sys
 import traceback
 
-from . import threads
+from . import progress, threads
 from .cmdutil import write_json
 from .errors import UserError
 
@@ -65,6 +65,8 @@ def build_parser(load: str | None = ALL) -> argparse.ArgumentParser:
         p.add_argument("--threads", type=int, default=None, metavar="N",
                        help="BLAS/OpenMP threads per process (default 1, or $LABID_THREADS; "
                             "OMP_NUM_THREADS and the like set by you are respected)")
+        p.add_argument("--quiet", "-q", action="store_true",
+                       help="no progress on stderr (the summary on stdout stays)")
     return parser
 
 
@@ -74,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         threads.configure(args.threads)
+        progress.set_quiet(args.quiet)
         result = args.func(args)
         if getattr(args, "json", None) and result is not None:
             write_json(result, args.json)
@@ -87,7 +90,8 @@ def main(argv: list[str] | None = None) -> int:
         traceback.print_exc()
         sys.stderr.write(f"labid {args.command}: internal error (exit 1)\n")
         return 1
-    return 0
+    # a command may ask for another exit code on success (``identify --strict``: 3)
+    return int(getattr(args, "exit_code", 0) or 0)
 
 
 if __name__ == "__main__":

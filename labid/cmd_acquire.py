@@ -35,7 +35,6 @@ def register(sub) -> None:
     p.add_argument("--effects", default="", metavar="NAME=V,..",
                    help="unmodelled effects injected into the simulated rig, e.g. "
                         "'sensor_mass=0.003,temperature=10' (CONTRACT effect names, SI units)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
     add_json_option(p)
     p.set_defaults(func=run)
 
