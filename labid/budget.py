@@ -186,7 +186,7 @@ def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[
             for name in ("sensor_position", "source_position", "path_length"):
                 if table[name][0] > 0:
                     add(name, path if name == "path_length" else 0.0, "m", d)
-    if est.method != "lm":
+    if not est.method.startswith("levenberg"):
         notes.append(f"method {est.method}: sensitivities from the least-squares normal equations at its estimate")
     return inputs, notes
 
@@ -215,7 +215,7 @@ def _unit(name: str) -> tuple[str, float]:
 
 def budget_text(b: Mapping[str, Any]) -> str:
     """Console table: per constant U (k, coverage), u_c, and each input's contribution."""
-    lines = [f"  uncertainty budget (GUM; expanded U = k u_c, k = {b['coverage_factor']:g}, coverage {b['coverage']}):"]
+    lines = [f"  uncertainty budget (GUM): expanded U = k u_c, coverage {b['coverage']}:"]
     for n, c in b["constants"].items():
         unit, sc = _unit(n)
         rel = f" ({100 * c['U_rel']:.2g} %)" if c.get("U_rel") is not None else ""

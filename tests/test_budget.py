@@ -120,3 +120,36 @@ def test_linear_model_sensitivity_is_minus_pseudo_inverse():
     bud = gum_budget([blk], est, [BudgetInput("bow", 0.0, 0.3, "1", -(t ** 2))])
     assert bud.sensitivity[:, 0] == pytest.approx([a_fit, b_fit], rel=1e-6)
     assert bud.u_combined == pytest.approx(np.sqrt(est.std ** 2 + (0.3 * np.abs(bud.sensitivity[:, 0])) ** 2))
+
+
+def _toml(unc: str) -> str:
+    return ('name = "Al plate"\n[plate]\nlength = 0.5\nwidth = 0.35\n[materials.Al]\ndensity = 2700.0\n'
+            'E = 70e9\nG = 26.3e9\n[layup]\nmaterial = "Al"\nangles_deg = [0]\nply_thickness = 5e-4\n' + unc)
+
+
+def test_identify_cli_writes_and_prints_the_budget(tmp_path, capsys):
+    import json
+
+    from labid.cli import main
+    (tmp_path / "plate.toml").write_text(_toml("[uncertainty]\nthickness = 5e-6\npath_length = 2e-3\n"))
+    spec = specimen_from_dict(PLATE)
+    doc = synthetic_features(spec, n_modes=0, waves=(("A0", 0.0, 100e3, 10),))
+    doc["specimen"] = "plate.toml"
+    doc["rig"] = {"wave_path_m": 0.2}
+    (tmp_path / "f.json").write_text(json.dumps(doc))
+    code = main(["identify", str(tmp_path / "f.json"), "--params", "E", "--json", str(tmp_path / "r.json")])
+    cap = capsys.readouterr()
+    assert code == 0, cap.err
+    b = json.loads((tmp_path / "r.json").read_text())["uncertainty_budget"]
+    src = {x["name"]: x["source"] for x in b["inputs"]}
+    assert src["thickness"] == "specimen" and src["sensor_position"] == "default"
+    cE = b["constants"]["E"]
+    assert cE["contributions"]["path_length"]["u"] == pytest.approx(
+        abs(cE["contributions"]["path_length"]["sensitivity"]) * 2e-3)
+    assert cE["U"] == pytest.approx(2 * cE["u_combined"])
+    assert "uncertainty budget" in cap.out and "path_length" in cap.out
+
+    (tmp_path / "plate.toml").write_text(_toml("[uncertainty]\nthickness = -1.0\n"))
+    code = main(["identify", str(tmp_path / "f.json"), "--params", "E"])
+    err = capsys.readouterr().err
+    assert code == 2 and "uncertainty.thickness" in err and "Traceback" not in err
