@@ -31,8 +31,7 @@ import numpy as np
 
 from engine.fit.budget import BudgetInput, gum_budget
 from engine.fit import Estimate
-from engine.plate import PlateModel
-from engine.plate.mesh import Mesh
+from engine.plate import Mesh, PlateModel
 
 from .errors import UserError
 from .estimation import Problem, problem_from_features
