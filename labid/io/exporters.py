@@ -218,7 +218,8 @@ def _damping_columns(feats: Mapping, n: int) -> tuple[list[float] | None, list[s
     """(loss factor, family label) per mode: the analysis's ``damping`` section (issue 16),
     else eta = 2 zeta from the modal damping ratios, without labels."""
     modes = (feats.get("damping") or {}).get("modes") or []
-    if len(modes) == n:
+    f = (feats.get("modal") or {}).get("frequencies_hz") or []
+    if len(modes) == n == len(f) and all(m.get("frequency_hz") == x for m, x in zip(modes, f)):  # not stale
         return [m.get("loss_factor", math.nan) for m in modes], [m.get("label") or "" for m in modes]
     z = (feats.get("modal") or {}).get("damping_ratio")
     return (loss_factors(z) if z and len(z) == n else None), None
