@@ -31,6 +31,7 @@ import numpy as np
 
 from engine.fit.budget import BudgetInput, gum_budget
 from engine.fit import Estimate
+from engine.forward import pair_by_mac
 from engine.plate import Mesh, PlateModel
 
 from .errors import UserError
@@ -126,6 +127,15 @@ def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[
     base_model = problem.modal_forward.model if has_modal else None
     mesh = base_model.mesh if has_modal else None
     y_obs = np.concatenate([b.observed for b in problem.blocks])
+    wave_doc = {k: v for k, v in doc.items() if k != "modal"} if doc.get("waves") else None
+    if has_modal:
+        # the perturbed models' modes follow the fitted ones by MAC on the full shape vectors
+        # (re-pairing with the measured shapes could swap close modes between the two sides
+        # of a difference)
+        fw = problem.modal_forward
+        n_solve = fw.n_solve + 4
+        index0 = fw.solve(dict(params0)).index
+        ref = base_model.solve(n_solve, params=dict(params0), material=mat).shapes[:, index0].T
 
     def predicted(L=L0, W=W0, h=h0, mass_rel=0.0, rho_rel=0.0, shift=(0.0, 0.0)) -> np.ndarray:
         lam = spec.laminate.scaled_thickness(h / h0) if h != h0 else spec.laminate
@@ -146,8 +156,15 @@ def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[
                     model = model.with_point_masses(mm)
             else:
                 model = base_model.with_laminate(lam) if h != h0 else base_model
-        pb = problem_from_features(doc, specimen=sp, material=mat, modal_model=model, src=problem.source)
-        return np.concatenate([np.asarray(b.predict(par), float) for b in pb.blocks])
+        parts = []
+        if has_modal:
+            modes = model.solve(n_solve, params=par, material=mat)
+            j, _ = pair_by_mac(ref, modes.shapes.T)
+            parts.append(modes.frequencies_hz[j])
+        if wave_doc is not None:
+            pb = problem_from_features(wave_doc, specimen=sp, material=mat, src=problem.source)
+            parts += [np.asarray(b.predict(par), float) for b in pb.blocks]
+        return np.concatenate(parts)
 
     def central(make: Callable[[float], dict], step: float) -> np.ndarray:
         return (predicted(**make(step)) - predicted(**make(-step))) / (2.0 * step)
