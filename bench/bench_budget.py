@@ -17,8 +17,8 @@ plate 500 x 350 x 2 mm, E = 70 GPa, G = 26.3 GPa, rho = 2700 kg/m^3):
   (the budget and the Monte Carlo use the same model, so the mesh does not matter for
   the comparison, only for speed).
 * ``waves``: A0 and S0 group velocities, 8 frequencies each to 150 kHz (1 % sigma), path
-  0.2 m; inputs thickness (1 %), sensor and source positions (1 mm each), path length
-  (0.5 mm).
+  0.2 m; inputs thickness (1 %), density (1 %), sensor and source positions (1 mm each),
+  path length (0.5 mm).
 
 Usage: python -m bench.bench_budget [--draws N] [--case modal|waves|both]
 """
@@ -83,7 +83,8 @@ def modal_case(n: int, rng: np.random.Generator) -> dict:
 
 
 def waves_case(n: int, rng: np.random.Generator) -> dict:
-    unc = {"thickness": 0.01 * H, "sensor_position": 1e-3, "source_position": 1e-3, "path_length": 5e-4}
+    unc = {"thickness": 0.01 * H, "density": 0.01 * RHO, "sensor_position": 1e-3, "source_position": 1e-3,
+           "path_length": 5e-4}
     sdoc = _specimen(unc)
     spec = specimen_from_dict(sdoc)
     waves = (("A0", 0.0, 150e3, 8), ("S0", 0.0, 150e3, 8))
@@ -100,7 +101,8 @@ def waves_case(n: int, rng: np.random.Generator) -> dict:
     for i in range(n):
         h = H + unc["thickness"] * rng.standard_normal()
         d = d0 + u_path * rng.standard_normal()      # the three along-path inputs, summed
-        lam = spec.laminate.scaled_thickness(h / H)
+        rho = RHO + unc["density"] * rng.standard_normal()
+        lam = spec.laminate.scaled_thickness(h / H).with_params({"density": rho})
         blocks = []
         for w in sets:
             cg = np.array(w["group_velocity_m_s"]) * d / d0        # observed = d / t
