@@ -34,6 +34,7 @@ from engine.safe import ply_stiffness
 from engine.waves_pipeline import WaveSettings, default_wavelet
 from engine.waves_predict import SourceModel
 
+from .damping import damping_summary
 from .errors import UserError
 from .features import features_text, validate_features
 from .rig import Rig, rig_from_text
@@ -327,6 +328,7 @@ def analyze_store(store: RunStore, settings: AnalysisSettings = AnalysisSettings
     doc: dict[str, Any] = {"specimen": spec_doc}
     if mfeat:
         doc["modal"] = mfeat
+        doc["damping"] = damping_summary(mfeat, specimen)   # issue 16 (helper s6): loss factors
     if wfeat:
         doc["waves"] = wfeat
     doc["rig"] = _rig_section(rig, extra)

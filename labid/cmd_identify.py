@@ -12,6 +12,7 @@ import argparse
 import sys
 
 from . import cluster, services
+from .budget import budget_text, identify_budget
 from .cmdutil import add_json_option
 from .errors import UserError
 from .identification import (METHODS, load_problem, multi_start, load_features,
@@ -90,6 +91,10 @@ def _identify(args: argparse.Namespace, client) -> dict:
             plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
     if args.json != "-":
         _print(out, est.names)
+    # issue 16 (helper s6): the GUM uncertainty budget (JSON uncertainty_budget, console table)
+    out["uncertainty_budget"] = identify_budget(problem, est, args.features)
+    if args.json != "-":
+        sys.stdout.write(budget_text(out["uncertainty_budget"]))
     if note := services.store_for_features(args.features, "identification", out):
         sys.stderr.write(f"labid identify: {note}\n")
     if args.csv:

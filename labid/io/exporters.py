@@ -12,7 +12,9 @@ UFF (written by pyuff; SI units, data set 164 first):
   (s); ID line 1 the channel name (what ``labid import`` maps), line 2 the shot, line 3 its
   date and time, line 5 ``kind=<hammer|wave>``;
 - 55 modes (normal modes, analysis type 2): the picked peaks in frequency order, frequency
-  (Hz), modal viscous damping ratio and hysteretic loss factor where given, the mode shape
+  (Hz), modal viscous damping ratio zeta and hysteretic loss factor eta = 2 zeta (the same
+  damping in its two conventions: do not add them; labid.damping), ID line 3 the mode's
+  family label ('(2,0)', 'unlabelled'; 'NONE' without labels), the mode shape
   (+Z, any scaling) at the accelerometer nodes where the analysis has one.
 
 Binary UFF58 keeps the samples exactly (double); ASCII keeps 12 digits. UFF keeps the
@@ -20,7 +22,8 @@ abscissa increment and the modal frequency to 6 digits (format E13.5).
 
 CSV tables (one header row, units in the column names or in a ``unit`` column):
 
-- ``features_modal.csv``: mode, frequency_hz, sigma_hz, damping_ratio, confidence;
+- ``features_modal.csv``: mode, frequency_hz, sigma_hz, damping_ratio, confidence, loss_factor
+  (eta = 2 zeta), family (the mode's (m, n) label, labid.damping);
 - ``features_waves.csv``: mode, direction_deg, frequency_hz, group_velocity_m_s, sigma_m_s;
 - ``constants.csv``: result, parameter, value, std, unit, rel_std, identified, constrained_by
   (value and std in the unit: Pa, kg/m^3, 1);
@@ -35,12 +38,14 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import json
+import math
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from ..analysis import AnalysisSettings, modal_features
+from ..damping import loss_factors
 from ..errors import UserError
 from ..rig import rig_from_text
 from ..store import RunStore, decode_result, software_version
@@ -111,10 +116,12 @@ def uff_frf(channel: str, node: int, ref_node: int, freqs: np.ndarray, h: np.nda
 
 def uff_modes(frequencies_hz: Sequence[float], nodes: Sequence[int] = (),
               shapes: Sequence[Sequence[float]] | None = None, damping_ratio: Sequence[float] | None = None,
-              loss_factor: Sequence[float] | None = None, note: str = "") -> list[dict]:
+              loss_factor: Sequence[float] | None = None, note: str = "",
+              labels: Sequence[str] | None = None) -> list[dict]:
     """Data sets 55 (normal modes): one per mode, frequency in Hz, modal viscous damping
     ratio (``damping_ratio``) and hysteretic loss factor (``loss_factor``) when given, the
-    shape (+Z) at ``nodes`` when ``shapes[i]`` has one value per node."""
+    shape (+Z) at ``nodes`` when ``shapes[i]`` has one value per node; ``labels[i]`` (the
+    mode family, e.g. '(2,0)') goes on ID line 3."""
     import pyuff  # noqa: PLC0415
 
     out = []
@@ -126,7 +133,8 @@ def uff_modes(frequencies_hz: Sequence[float], nodes: Sequence[int] = (),
         z = 0.0
         vis = float(damping_ratio[i]) if damping_ratio is not None and np.isfinite(damping_ratio[i]) else z
         his = float(loss_factor[i]) if loss_factor is not None and np.isfinite(loss_factor[i]) else z
-        out.append(pyuff.prepare_55(id1=f"mode {i + 1}", id2=f"{float(f):.6g} Hz", id4=note or "NONE",
+        lab = labels[i] if labels is not None and i < len(labels) and labels[i] else "NONE"
+        out.append(pyuff.prepare_55(id1=f"mode {i + 1}", id2=f"{float(f):.6g} Hz", id3=lab, id4=note or "NONE",
                                     id5="picked peaks (labid analyze)", model_type=1, analysis_type=2, data_ch=2,
                                     spec_data_type=8, load_case=1, mode_n=i + 1, freq=float(f), modal_m=0.0,
                                     modal_damp_vis=vis, modal_damp_his=his, node_nums=n, r1=np.zeros(r3.size),
@@ -191,8 +199,9 @@ def export_uff(run: str | Path, path: str | Path, binary: bool = True) -> dict:
             m = next((c for c in acc if abs(c.x - x) < 1e-9 and abs(c.y - y) < 1e-9), None)
             nn.append(nodes[m.name] if m is not None else None)
         shapes = ms.get("values") if pts and None not in nn else None
+        loss, labels = _damping_columns(feats, len(modal["frequencies_hz"]))
         sets += uff_modes(modal["frequencies_hz"], nn if shapes else (), shapes, modal.get("damping_ratio"),
-                          modal.get("loss_factor"), note)
+                          loss, note, labels)
         counts["modes"] = len(modal["frequencies_hz"])
     else:
         notes.append("no modes: the run has not been analysed (labid analyze) or holds no peak")
@@ -203,6 +212,17 @@ def export_uff(run: str | Path, path: str | Path, binary: bool = True) -> dict:
     except OSError as e:
         raise UserError(f"cannot write: {e.strerror or e}", file=str(path), key="--uff") from None
     return {"uff": str(path), "datasets": len(sets), **counts, "notes": notes}
+
+
+def _damping_columns(feats: Mapping, n: int) -> tuple[list[float] | None, list[str] | None]:
+    """(loss factor, family label) per mode: the analysis's ``damping`` section (issue 16),
+    else eta = 2 zeta from the modal damping ratios, without labels."""
+    modes = (feats.get("damping") or {}).get("modes") or []
+    f = (feats.get("modal") or {}).get("frequencies_hz") or []
+    if len(modes) == n == len(f) and all(m.get("frequency_hz") == x for m, x in zip(modes, f)):  # not stale
+        return [m.get("loss_factor", math.nan) for m in modes], [m.get("label") or "" for m in modes]
+    z = (feats.get("modal") or {}).get("damping_ratio")
+    return (loss_factors(z) if z and len(z) == n else None), None
 
 
 def _features(analysis: Any) -> dict | None:
@@ -244,10 +264,12 @@ def feature_tables(features: Mapping, csv_dir: str | Path) -> list[str]:
     f = m.get("frequencies_hz") or []
     if f:
         col = {k: m.get(k) or [None] * len(f) for k in ("sigma_hz", "damping_ratio", "confidence")}
+        loss, labels = _damping_columns(features, len(f))
+        loss, labels = loss or [None] * len(f), labels or [""] * len(f)
         out.append(_write(d / "features_modal.csv", ["mode", "frequency_hz", "sigma_hz", "damping_ratio",
-                                                     "confidence"],
-                          ([i + 1, f[i], col["sigma_hz"][i], col["damping_ratio"][i], col["confidence"][i]]
-                           for i in range(len(f)))))
+                                                     "confidence", "loss_factor", "family"],
+                          ([i + 1, f[i], col["sigma_hz"][i], col["damping_ratio"][i], col["confidence"][i],
+                            loss[i], labels[i]] for i in range(len(f)))))
     rows = []
     for w in features.get("waves") or []:
         for i, fr in enumerate(w.get("frequency_hz") or []):
