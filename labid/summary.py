@@ -23,15 +23,21 @@ Pure functions on plain data (no I/O, no Qt, no engine import), each returning a
   ``labid dispersion`` result (``label``, ``cutoff_hz``, ``frequency_hz``,
   ``phase_velocity_m_s``, ``group_velocity_m_s``): cut-off, frequency span, number
   of points and the velocities at the lowest and highest frequency.
+- ``next_step(counts, results) -> (current, next)``: where a run stands and what comes next,
+  from its shot counts (``{"hammer": n, "wave": m}``) and results group names:
+  ``("analysed: 39 resonances", "identify (Identification tab, or labid identify)")``.
+- ``stream(args)``: where a command's summary goes: stdout, or None when ``--json -``
+  holds stdout for the JSON result.
 - ``table(head, rows, align=None) -> str``: the text table itself (columns padded,
   a dashed rule under the head); numbers right-aligned by default.
 """
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any, Iterable, Mapping, Sequence
 
-__all__ = ["eng", "unit_of", "constant_with_u", "constants_table", "pairing_table",
+__all__ = ["stream", "next_step", "eng", "unit_of", "constant_with_u", "constants_table", "pairing_table",
            "modes_table", "dispersion_table", "table", "PREFIXES"]
 
 #: SI prefixes by power of 1000
@@ -221,3 +227,24 @@ def dispersion_table(modes: Sequence[Mapping]) -> str:
             rows.append([str(m.get("label")), eng(m.get("cutoff_hz"), "Hz", 3), "not on the grid", "0", DASH, DASH])
     return table(["mode", "cut-off", "frequencies", "points", "c_p (m/s) low/high", "c_g (m/s) low/high"],
                  rows, align="lrrrrr")
+
+
+def next_step(counts: Mapping[str, int], results: Mapping[str, Any] | Iterable[str]) -> tuple[str, str]:
+    """(current step, next step) of a run from its shot counts and results (see module doc)."""
+    names = set(results)
+    h, w = int((counts or {}).get("hammer", 0)), int((counts or {}).get("wave", 0))
+    if not h and not w:
+        return "no shots yet", "acquire (Acquisition tab, or labid acquire)"
+    shots = f"{h} hammer hit{'s' * (h != 1)}, {w} wave shot{'s' * (w != 1)}"
+    if not names & {"analysis", "features"}:
+        return f"acquired: {shots}", "analyse (Modes tab: Analyze run, or labid analyze)"
+    if not any(n.startswith(("identification", "identify")) for n in names):
+        return f"analysed: {shots}", "identify (Identification tab, or labid identify)"
+    if not names & {"diagnosis", "gap", "diagnose"}:
+        return "identified", "diagnose the sim-to-real gap (Gap tab, or labid diagnose)"
+    return "identified and diagnosed", "write the report (File > Write report, or labid report)"
+
+
+def stream(args):
+    """``sys.stdout`` for a command's human summary, or None when ``--json -`` uses stdout."""
+    return None if getattr(args, "json", None) == "-" else sys.stdout
