@@ -68,7 +68,8 @@ def run(args) -> dict:
         wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous",
         report_s0=not args.without_s0)
     out_path = args.out or str(services.features_path(args.run))
-    progress.note(f"labid analyze: {args.run}: resonance peaks and CWT group velocities")
+    if progress.enabled():      # a terminal: say what the next seconds are for
+        progress.note(f"labid analyze: {args.run}: resonance peaks and CWT group velocities")
     feats = services.run_analysis(args.run, settings, out=args.out).features
     w = stream(args)
     if w is not None:

@@ -49,7 +49,7 @@ def run(args) -> dict:
     _check(args)
     spec = load_specimen(args.spec)
     f = np.arange(1, args.n + 1) * args.fmax / args.n
-    if args.n >= 50:            # a few seconds of SAFE solves: say what is being done
+    if args.n >= 50 and progress.enabled():     # a few seconds of SAFE solves: say what for
         progress.note(f"labid dispersion: SAFE model of {spec.name}, {args.n} frequencies up to {args.fmax:g} Hz")
     try:
         model = safe_model(spec.laminate, args.direction_deg, fmax_hz=args.fmax)

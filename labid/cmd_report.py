@@ -17,7 +17,8 @@ def register(sub) -> None:
 
 
 def run(args) -> dict:
-    progress.note(f"labid report: {args.run}: drawing the figures")
+    if progress.enabled():      # a terminal: say what the next seconds are for
+        progress.note(f"labid report: {args.run}: drawing the figures")
     out = write_report(args.run, args.out)
     w = stream(args)
     if w is not None:

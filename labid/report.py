@@ -23,19 +23,16 @@ results, never recomputed.
 """
 from __future__ import annotations
 
-import base64
 import html
-import io
 import math
 import time
 import tomllib
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from . import services
 from .errors import UserError
+from .report_figures import fig_dispersion, fig_gap, fig_scalogram, fig_spectrum, img, scalar
 from .rig import rig_from_text
 from .services import GAP_GROUPS, IDENT_GROUPS, RunData, features_of, lookup
 from .specimen import specimen_from_dict
@@ -55,166 +52,6 @@ REPORT_FIELDS = (("lab", "Laboratory"), ("client", "Client"), ("operator", "Oper
                  ("revision", "Revision"))
 #: tables longer than this go to an appendix
 SHORT_TABLE = 12
-
-
-def _waves_list(w: Any) -> list[dict]:
-    if isinstance(w, dict):
-        return [w]
-    return [x for x in (w or []) if isinstance(x, dict)]
-
-
-# ------------------------------------------------------------------ figures
-def _fig_png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    _plt().close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _img(b64: str, alt: str) -> str:
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
-
-
-def _plt():
-    """pyplot on the Agg backend, imported when the first figure is drawn: the panel imports
-    this module at start and does not pay matplotlib's 0.3 s until a report is written."""
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def fig_spectrum(rd: RunData, feats: dict) -> str | None:
-    spec = lookup(rd.results, ("analysis/spectrum", "analysis/modal/spectrum", "modal/spectrum"))
-    if isinstance(spec, dict) and "frequencies_hz" in spec:
-        f = np.asarray(spec["frequencies_hz"])
-        y = np.asarray(spec.get("indicator", spec.get("magnitude")))
-        y = y if y.ndim == 1 else (y ** 2).sum(axis=0)
-        label = "stored spectrum"
-    else:
-        got = services.average_spectrum(rd.hammer)
-        if got is None:
-            return None
-        f, y, kind = got
-        label = f"summed normalised {'|H1|²' if kind == 'frf' else 'auto-spectra'} of {len(rd.hammer)} hits"
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.6))
-    ax.semilogy(f[1:], y[1:], lw=0.8, color="#1f77b4", label=label)
-    picks = np.asarray((feats.get("modal") or {}).get("frequencies_hz", []), float)
-    top = float(np.nanmax(y[1:])) if len(y) > 1 else 1.0
-    for i, fp in enumerate(picks):
-        ax.axvline(fp, color="#d62728", lw=0.8, ls="--", label="picked resonances" if i == 0 else None)
-    model = _model_frequencies(rd)
-    for i, fm in enumerate(model):
-        ax.plot([fm], [top * 1.5], "v", color="#2ca02c", label="identified model" if i == 0 else None)
-    if len(picks):
-        ax.set_xlim(0, min(f[-1], 1.25 * picks.max()))
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("indicator")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.grid(alpha=0.3)
-    return _fig_png(fig)
-
-
-def _model_frequencies(rd: RunData) -> np.ndarray:
-    return services.model_frequencies(lookup(rd.results, IDENT_GROUPS))
-
-
-def fig_scalogram(rd: RunData, feats: dict) -> str | None:
-    if not rd.wave:
-        return None
-    rec = rd.wave[0]
-    chans = [c.name for c in rec.channels]
-    name = chans[-1]
-    ridge = lookup(rd.results, ("analysis/arrivals", "analysis/waves/arrivals"))
-    an = rd.results.get("analysis")
-    sc = services.scalogram(rec, name, an if isinstance(an, dict) else None, n_freqs=80)
-    t, freqs, Wm = sc.times_s, sc.frequencies_hz, sc.magnitude
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.6))
-    ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
-    if isinstance(ridge, dict) and "times_s" in ridge:
-        ax.plot(np.asarray(ridge["times_s"]) * 1e6, np.asarray(ridge["frequencies_hz"]) / 1e3, "w.-",
-                ms=3, lw=0.8, label="picked arrival ridge")
-        ax.legend(loc="upper right", fontsize=8)
-    ax.set_xlabel("time after trigger (µs)")
-    ax.set_ylabel("frequency (kHz)")
-    ax.set_title(f"|CWT| of {rec.meta.get('shot', 'wave shot')}, channel {name} ({sc.wavelet})", fontsize=9)
-    return _fig_png(fig)
-
-
-def fig_dispersion(rd: RunData, feats: dict) -> str | None:
-    ws = _waves_list(feats.get("waves"))
-    if not ws:
-        return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.6))
-    for w in ws:
-        f = np.asarray(w.get("frequency_hz", []), float)
-        v = np.asarray(w.get("group_velocity_m_s", []), float)
-        s = np.asarray(w.get("sigma_m_s", np.zeros_like(v)), float)
-        ax.errorbar(f / 1e3, v, yerr=s, fmt="o", ms=3, capsize=2,
-                    label=f"measured {w.get('mode', '')} {w.get('direction_deg', 0):g}°")
-    params = services.parameters_of(lookup(rd.results, IDENT_GROUPS))
-    lam = _laminate(rd)
-    if lam is not None:
-        for w in ws:
-            f = np.asarray(w.get("frequency_hz", []), float)
-            if f.size < 2:
-                continue
-            grid = np.linspace(f.min(), f.max(), 60)
-            mode, d = str(w.get("mode", "A0")), float(w.get("direction_deg", 0.0))
-            for label, p, style in (("nominal", None, "--"), ("identified", params, "-")):
-                if label == "identified" and not params:
-                    continue
-                try:
-                    v = services.model_group_velocity(lam, grid, mode, d, p)
-                except (ValueError, KeyError, TypeError):
-                    continue
-                ax.plot(grid / 1e3, v, style, color="#2ca02c" if p else "0.4",
-                        label=f"SAFE {mode}, {label} constants")
-    ax.set_xlabel("frequency (kHz)")
-    ax.set_ylabel("group velocity (m/s)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    return _fig_png(fig)
-
-
-def _laminate(rd: RunData):
-    """The laminate of the run's specimen, or None."""
-    try:
-        return specimen_from_dict(tomllib.loads(rd.specimen_toml), "run file").laminate
-    except Exception:  # noqa: BLE001 - the figure just lacks the model curve
-        return None
-
-
-def fig_gap(gap: dict) -> str | None:
-    effects = [e for e in (gap.get("effects") or []) if isinstance(e, dict)]
-    g = gap.get("gap") or {}
-    if not effects:
-        return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.0))
-    names = [str(e.get("name")) for e in effects]
-    after = [float(e.get("gap_after", np.nan)) for e in effects]
-    ax.barh(names[::-1], after[::-1], color="#9ecae1", label="gap after modelling the effect")
-    before = _scalar(g.get("before"))
-    if before is not None:
-        ax.axvline(before, color="#d62728", ls="--", label="gap before")
-    ax.set_xlabel(f"gap ({g.get('unit') or 'rms of residual/σ'})")
-    # legend below the axes: never over a bar
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.28), ncol=2, frameon=False)
-    return _fig_png(fig)
-
-
-def _scalar(v: Any) -> float | None:
-    if isinstance(v, (int, float, np.floating, np.integer)):
-        return float(v)
-    if isinstance(v, dict):
-        for k in ("total", "rms", "value", "chi2"):
-            if k in v:
-                return _scalar(v[k])
-    return None
 
 
 # ------------------------------------------------------------------ html
@@ -377,7 +214,7 @@ def section_constants(rd: RunData, appendix: list) -> str:
     out += uncertainty_statement(ident)
     fit = ident.get("fit")
     if isinstance(fit, dict):
-        chi2, dof, pv = _scalar(fit.get("chi2")), _scalar(fit.get("dof")), _scalar(fit.get("p_value"))
+        chi2, dof, pv = scalar(fit.get("chi2")), scalar(fit.get("dof")), scalar(fit.get("p_value"))
         cons = fit.get("consistent")
         out += (f"<p><b>Fit consistency.</b> χ² = {_fmt(chi2)} for {_fmt(dof)} degrees of freedom, "
                 f"p = {_fmt(pv)}: {'consistent with the stated sigmas' if cons else 'NOT consistent'}"
@@ -385,7 +222,7 @@ def section_constants(rd: RunData, appendix: list) -> str:
     res = ident.get("residual") or {}
     conv = ident.get("converged")
     out += (f"<p>Converged: {html.escape('yes' if conv else 'NO')}; relative rms residual: "
-            + ", ".join(f"{html.escape(k.replace('_rms_rel', ''))} {_fmt(_scalar(v))}" for k, v in res.items())
+            + ", ".join(f"{html.escape(k.replace('_rms_rel', ''))} {_fmt(scalar(v))}" for k, v in res.items())
             + ".</p>")
     flags = ident.get("flags") or []
     warns = [w for w in (ident.get("warnings") or []) if isinstance(w, str)]
@@ -455,7 +292,7 @@ def section_picks(feats: dict, ident: Any, appendix: list) -> str:
         for p in pairs:
             if not isinstance(p, dict):
                 continue
-            meas, pred = _scalar(p.get("measured_hz")), _scalar(p.get("predicted_hz"))
+            meas, pred = scalar(p.get("measured_hz")), scalar(p.get("predicted_hz"))
             diff = ("predicted mode without a peak" if meas is None else "peak without a mode" if pred is None
                     else f"{100 * (pred - meas) / meas:+.2f} %")
             prow.append([html.escape(str(p.get("peak", "—"))), "—" if meas is None else f"{meas:.3f}",
@@ -472,7 +309,7 @@ def section_picks(feats: dict, ident: Any, appendix: list) -> str:
 
 def _effect_magnitude(e: dict) -> str:
     unit = str(e.get("unit") or "")
-    v = _scalar(e.get("magnitude"))
+    v = scalar(e.get("magnitude"))
     if v is None:
         return "—"
     if unit in ("", "1"):
@@ -487,7 +324,7 @@ def section_gap(rd: RunData) -> str:
     g = gap.get("gap") or {}
     gunit = html.escape(str(g.get("unit") or "rms of residual/σ"))
     out = [f"<p><b>Verdict: {html.escape(str(gap.get('verdict', '—')))}</b>. Gap before: "
-           f"{html.escape(_fmt(_scalar(g.get('before'))))}, after: {html.escape(_fmt(_scalar(g.get('after'))))} "
+           f"{html.escape(_fmt(scalar(g.get('before'))))}, after: {html.escape(_fmt(scalar(g.get('after'))))} "
            f"({gunit}).</p>"]
     where = gap.get("where") or []
     if where:
@@ -496,11 +333,11 @@ def section_gap(rd: RunData) -> str:
     effects = [e for e in (gap.get("effects") or []) if isinstance(e, dict)]
     if effects:
         rows = [[str(i + 1), html.escape(str(e.get("name"))), _effect_magnitude(e),
-                 _fmt(_scalar(e.get("gap_after"))), _fmt(_scalar(e.get("score")))] for i, e in enumerate(effects)]
+                 _fmt(scalar(e.get("gap_after"))), _fmt(scalar(e.get("score")))] for i, e in enumerate(effects)]
         out.append(_table(rows, ["rank", "effect", "magnitude", f"gap after ({gunit})", "score"]))
         png = fig_gap(gap)
         if png:
-            out.append(_img(png, "gap before and after each effect"))
+            out.append(img(png, "gap before and after each effect"))
     return "".join(out)
 
 
@@ -564,15 +401,15 @@ def build_report(run: str | Path) -> str:
         parts.append(_note("no hammer shots in this run"))
     else:
         png = fig_spectrum(rd, feats)
-        parts.append(_img(png, "spectra with picks") if png else _note("no spectrum"))
+        parts.append(img(png, "spectra with picks") if png else _note("no spectrum"))
     if rd.hammer or (feats.get("modal") or {}).get("frequencies_hz"):
         parts.append(section_picks(feats, ident, appendix))
     parts.append("<h2>4. Scalogram</h2>")
     png = fig_scalogram(rd, feats) if rd.wave else None
-    parts.append(_img(png, "scalogram") if png else _note("no wave shots in this run"))
+    parts.append(img(png, "scalogram") if png else _note("no wave shots in this run"))
     parts.append("<h2>5. Dispersion fit</h2>")
     png = fig_dispersion(rd, feats)
-    parts.append(_img(png, "group velocity") if png else _note("no group velocities in this run"))
+    parts.append(img(png, "group velocity") if png else _note("no group velocities in this run"))
     parts += ["<h2>6. Gap diagnosis</h2>", section_gap(rd),
               "<h2>7. Signatures</h2>", section_signatures(fields)]
     for i, (title, body) in enumerate(appendix, 1):

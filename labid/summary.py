@@ -10,6 +10,8 @@ Pure functions on plain data (no I/O, no Qt, no engine import), each returning a
   ``Pa``, ``nu*`` -> ``""``, ``density``/``rho`` -> ``kg/m³``, ``thickness`` -> ``m``.
 - ``constant_with_u(name, value, std, k=2) -> str``: ``"136.7 GPa ± 1.6 GPa (k=2)"``,
   the expanded uncertainty U = k x std in the value's prefix.
+- ``constant_cells(name, value, std, k=2) -> (value, std, U, rel U)``: the cells of one
+  constant as text, std and U in the value's prefix.
 - ``constants_table(parameters, k=2, nominal=None) -> str``: one row per constant of
   ``{name: {"value", "std"}}`` (an identification's ``parameters``): value, std,
   U = k x std, relative U, nominal (if given).
@@ -37,8 +39,8 @@ import math
 import sys
 from typing import Any, Iterable, Mapping, Sequence
 
-__all__ = ["stream", "next_step", "eng", "unit_of", "constant_with_u", "constants_table", "pairing_table",
-           "modes_table", "dispersion_table", "table", "PREFIXES"]
+__all__ = ["eng", "unit_of", "constant_cells", "constant_with_u", "constants_table", "pairing_table",
+           "modes_table", "dispersion_table", "next_step", "stream", "table", "PREFIXES"]
 
 #: SI prefixes by power of 1000
 PREFIXES = {-4: "p", -3: "n", -2: "µ", -1: "m", 0: "", 1: "k", 2: "M", 3: "G", 4: "T"}
@@ -109,8 +111,8 @@ def unit_of(name: str) -> str:
     return ""
 
 
-def _pair_fmt(name: str, value: Any, std: Any, k: float = 2.0) -> tuple[str, str, str, str]:
-    """(value, std, U, rel U) strings of a constant, std and U in the value's prefix."""
+def constant_cells(name: str, value: Any, std: Any, k: float = 2.0) -> tuple[str, str, str, str]:
+    """(value, std, U = k x std, U / |value|) as text, std and U in the value's SI prefix."""
     u = unit_of(name)
     v, s = _finite(value), _finite(std)
     if u and u != "kg/m³" and v is not None:
@@ -131,7 +133,7 @@ def _pair_fmt(name: str, value: Any, std: Any, k: float = 2.0) -> tuple[str, str
 
 def constant_with_u(name: str, value: Any, std: Any, k: float = 2.0) -> str:
     """``'136.7 GPa ± 1.6 GPa (k=2)'``: value and expanded uncertainty U = k x std."""
-    vs, _, us, _ = _pair_fmt(name, value, std, k)
+    vs, _, us, _ = constant_cells(name, value, std, k)
     if us == DASH:
         return vs
     return f"{vs} ± {us} (k={k:g})"
@@ -162,11 +164,11 @@ def constants_table(parameters: Mapping[str, Mapping], k: float = 2.0,
     for name, p in (parameters or {}).items():
         if not isinstance(p, Mapping):
             continue
-        vs, ss, us, rel = _pair_fmt(name, p.get("value"), p.get("std"), k)
+        vs, ss, us, rel = constant_cells(name, p.get("value"), p.get("std"), k)
         row = [name, vs, ss, us, rel]
         if nominal is not None:
             nv = nominal.get(name)
-            row.append(_pair_fmt(name, nv, None)[0] if _finite(nv) is not None else DASH)
+            row.append(constant_cells(name, nv, None)[0] if _finite(nv) is not None else DASH)
         rows.append(row)
     head = ["constant", "value", "std", f"U (k={k:g})", "rel. U"] + (["nominal"] if nominal is not None else [])
     return table(head, rows)
