@@ -201,3 +201,29 @@ def test_the_demo_run_file_opens(qtbot, tmp_path_factory):
                 assert w.gap.result["verdict"] == rd.results["diagnosis"]["verdict"]
         finally:
             dispose(w)
+
+
+def test_pairing_of_a_result_is_shown(qtbot, partial_runs, tmp_path):
+    """A result with a pairing (s1/s5's identify) shows it, family labels included;
+    without one the table stays hidden."""
+    path = tmp_path / "paired.h5"
+    path.write_bytes(partial_runs["analysed"].read_bytes())
+    services.store_result(path, "identification", {
+        "parameters": {"E1": {"value": 136.7e9, "std": 0.4e9}}, "converged": True,
+        "pairing": [{"peak": 1, "measured_hz": 100.0, "mode_index": 1, "family": "(1,1) torsion",
+                     "predicted_hz": 101.0},
+                    {"peak": None, "measured_hz": None, "mode_index": 2, "family": "(0,2)", "predicted_hz": 120.0}]})
+    w = open_window(path)
+    try:
+        t = w.identification.pairing_table
+        assert not t.isHidden() and t.rowCount() == 2
+        assert [t.item(0, j).text() for j in range(6)] == ["1", "100.000", "1", "(1,1) torsion", "101.000",
+                                                          "+1.00 %"]
+        assert t.item(1, 5).text() == "predicted mode without a peak"
+    finally:
+        dispose(w)
+    w = open_window(partial_runs["analysed"])
+    try:
+        assert w.identification.pairing_table.isHidden()
+    finally:
+        dispose(w)

@@ -11,11 +11,22 @@ from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QT
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
 from .. import services
+from ..summary import eng
 from .common import Banner, plot
 
 
 def _f(v, fmt=".3g") -> str:
     return "—" if not isinstance(v, (int, float)) or not np.isfinite(v) else format(v, fmt)
+
+
+def _magnitude(e: dict) -> str:
+    """An effect's magnitude in engineering notation with its unit ('561 µm'; bare when unitless)."""
+    unit = str(e.get("unit") or "")
+    if unit in ("", "1"):
+        return _f(e.get("magnitude"))
+    if unit.isalpha() and len(unit) <= 2:          # m, s, kg, K: an SI prefix reads well
+        return eng(e.get("magnitude"), unit, 3)
+    return f"{_f(e.get('magnitude'))} {unit}"
 
 
 class GapView(QWidget):
@@ -126,7 +137,7 @@ class GapView(QWidget):
         effects = [e for e in (res.get("effects") or []) if isinstance(e, dict)]
         self.table.setRowCount(len(effects))
         for i, e in enumerate(effects):
-            cells = [str(i + 1), str(e.get("name")), f"{_f(e.get('magnitude'))} {'' if e.get('unit') == '1' else e.get('unit', '')}".strip(),
+            cells = [str(i + 1), str(e.get("name")), _magnitude(e),
                      _f(e.get("gap_after")), _f(e.get("score")), "yes" if e.get("detectable", True) else "no"]
             for j, c in enumerate(cells):
                 item = QTableWidgetItem(c)

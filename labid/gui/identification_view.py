@@ -120,6 +120,14 @@ class IdentificationView(QWidget):
         self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.verticalHeader().setVisible(False)
+        # measured peaks against FE modes with their (m,n) family, when the result has a pairing
+        self.pairing_table = QTableWidget(0, 6)
+        self.pairing_table.setHorizontalHeaderLabels(["peak", "measured (Hz)", "FE mode", "family",
+                                                      "predicted (Hz)", "difference"])
+        self.pairing_table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
+        self.pairing_table.horizontalHeader().setStretchLastSection(True)
+        self.pairing_table.verticalHeader().setVisible(False)
+        self.pairing_table.setVisible(False)
         self.summary = QLabel("")
         self.summary.setWordWrap(True)
         self.summary.setMinimumHeight(3 * self.summary.fontMetrics().height())
@@ -138,6 +146,7 @@ class IdentificationView(QWidget):
         left.addWidget(ctl)
         left.addWidget(self.param_box)
         left.addWidget(self.table, 1)
+        left.addWidget(self.pairing_table, 1)
         left.addWidget(self.summary)
         lw = QWidget()
         lw.setLayout(left)
@@ -338,6 +347,7 @@ class IdentificationView(QWidget):
                 item = QTableWidgetItem(c)
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
                 self.table.setItem(i, j, item)
+        self.show_pairing(out.get("pairing"))
         res = out.get("residual") or {}
         rs = ", ".join(f"{k} {v:.2e}" for k, v in res.items() if isinstance(v, (int, float)))
         self.summary.setText(f"data {out.get('data') or _data_of(out)} · method {out.get('method', '?')} · "
@@ -394,6 +404,24 @@ class IdentificationView(QWidget):
         if isinstance(thr, (int, float)) and names:
             self.ident_plot.addItem(pg.InfiniteLine(math.log10(thr), angle=0,
                                                     pen=pg.mkPen("#d62728", style=Qt.DashLine)))
+
+    def show_pairing(self, pairs) -> None:
+        """The pairing table of a result (hidden when it has none)."""
+        pairs = [p for p in pairs if isinstance(p, dict)] if isinstance(pairs, list) else []
+        self.pairing_table.setVisible(bool(pairs))
+        self.pairing_table.setRowCount(len(pairs))
+        for i, p in enumerate(pairs):
+            meas, pred = _num(p.get("measured_hz")), _num(p.get("predicted_hz"))
+            diff = ("predicted mode without a peak" if not math.isfinite(meas) else
+                    "peak without a mode" if not math.isfinite(pred) else f"{100 * (pred - meas) / meas:+.2f} %")
+            cells = ["—" if p.get("peak") is None else str(p.get("peak")),
+                     "—" if not math.isfinite(meas) else f"{meas:.3f}",
+                     "—" if p.get("mode_index") is None else str(p.get("mode_index")),
+                     str(p.get("family") or "—"), "—" if not math.isfinite(pred) else f"{pred:.3f}", diff]
+            for j, c in enumerate(cells):
+                item = QTableWidgetItem(c)
+                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                self.pairing_table.setItem(i, j, item)
 
     def _specimen_nominal(self) -> dict:
         """Nominal constants of the specimen of the features (a CLI result stores none)."""
