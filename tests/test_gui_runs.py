@@ -115,8 +115,13 @@ def test_every_partial_run_opens_and_says_the_next_step(qtbot, partial_runs, sta
         if stage == "empty":
             assert any(t.startswith("no data yet") for t in notes(w.acquisition.trace_plot))
             assert any(t.startswith("no data yet") for t in notes(w.modes.plot))
+            assert w.waves._scalo_note.isVisible()
         else:       # the last stored record is drawn
             assert w.acquisition.trace_plot.getPlotItem().listDataItems()
+        if stage != "diagnosed":
+            assert any(t.startswith("no data yet") for t in notes(w.gap.resid_plot))
+        else:
+            assert w.gap.result["verdict"] == "none" and not notes(w.gap.resid_plot)
         if stage in ("empty", "shots", "analysed"):
             assert any(t.startswith("no data yet") for t in notes(w.identification.history_plot))
         if stage in ("identified", "diagnosed"):

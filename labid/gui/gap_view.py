@@ -12,7 +12,7 @@ from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QT
 
 from .. import services
 from ..summary import eng
-from .common import Banner, plot
+from .common import Banner, empty_note, plot
 
 
 def _f(v, fmt=".3g") -> str:
@@ -90,6 +90,12 @@ class GapView(QWidget):
         res = self.main.read_results("diagnosis")
         if res and self.job is None:
             self.show_result(res)
+        elif self.job is None and self.result is None:
+            for w in (self.resid_plot, self.group_plot):
+                w.clear()
+                w.setXRange(0, 1)
+                w.setYRange(0, 1)
+                empty_note(w, "no data yet: " + ("press Diagnose" if doc else "no measured features"))
 
     def diagnose(self) -> None:
         doc = self.features()
@@ -145,6 +151,8 @@ class GapView(QWidget):
                 self.table.setItem(i, j, item)
         # residuals before/after per feature
         self.resid_plot.clear()
+        self.resid_plot.enableAutoRange()
+        self.group_plot.enableAutoRange()
         ft = res.get("features") or {}
         r0 = np.asarray(ft.get("residual_before", []), float)
         r1 = np.asarray(ft.get("residual_after", []), float)
