@@ -18,7 +18,7 @@ from . import progress
 from .cmdutil import add_json_option
 from .errors import UserError
 from .specimen import load_specimen
-from .summary import dispersion_table, stream
+from .summary import dispersion_table, eng, stream
 
 
 def register(sub) -> None:
@@ -72,7 +72,7 @@ def run(args) -> dict:
     out = stream(args)
     if out is not None:
         out.write(f"{spec.name}: guided-wave modes along {args.direction_deg:g}°, {args.n} frequencies "
-                  f"{f[0]:g}-{args.fmax:g} Hz (SAFE, order {model.order}, {model.elements_per_ply} "
+                  f"{eng(f[0], 'Hz')} to {eng(args.fmax, 'Hz')} (SAFE, order {model.order}, {model.elements_per_ply} "
                   f"element(s) per ply)\n")
         out.write(dispersion_table(modes))
         written = [x for x in (args.plot, getattr(args, "json", None)) if x]
