@@ -9,6 +9,9 @@ PATH, takes headless screenshots of it: ``report.png`` (the certificate's first 
 ``report-full.png`` (the whole report, appendices included). Run it from the folder that
 holds DIR, so that the panel and the report show the path a user types (``demo_out/...``);
 the window is not closed, so no session state is written into the demo's run file.
+``--multistart N`` also runs an identification with N random starts from the panel on a
+copy ``DIR/demo_run_multistart.h5`` (removed afterwards) and grabs
+``identification-multistart.png``.
 """
 from __future__ import annotations
 
@@ -47,6 +50,39 @@ def grab_panel(run: Path) -> list[Path]:
     return out
 
 
+def grab_multistart(src: Path, n_starts: int) -> list[Path]:
+    """Identify from the demo run with ``n_starts`` random starts in the panel; grab the tab."""
+    from PySide6.QtCore import QEventLoop
+    from PySide6.QtWidgets import QApplication
+
+    from labid.gui.main_window import MainWindow
+    app = QApplication.instance() or QApplication(["labid"])
+    run = src.with_name("demo_run_multistart.h5")
+    shutil.copy(src, run)
+    try:
+        win = MainWindow(str(run))
+        win.resize(1366, 768)
+        win.show()
+        win.tabs.setCurrentIndex(TABS.index("identification"))
+        view = win.identification
+        view.starts_spin.setValue(n_starts)
+        view.identify()
+        if view.job is not None:
+            loop = QEventLoop()
+            view.job.ended.connect(loop.quit)
+            loop.exec()                       # until the job's 'ended' signal
+        for _ in range(5):
+            app.processEvents()
+        p = HERE / "identification-multistart.png"
+        win.grab().save(str(p))
+        win.shutdown_jobs()
+        win.deleteLater()
+        app.processEvents()
+        return [p]
+    finally:
+        run.unlink(missing_ok=True)
+
+
 def shoot_report(run: Path, workdir: Path) -> list[Path]:
     from labid.report import write_report
     html = Path(write_report(run, workdir / "report.html"))
@@ -68,6 +104,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--demo-out", default="demo_out", help="output folder of labid demo (default demo_out)")
     ap.add_argument("--run-demo", action="store_true", help="run labid demo --out DIR first")
+    ap.add_argument("--multistart", type=int, default=0, metavar="N",
+                    help="also grab the Identification tab after N random starts (a minute of CPU)")
     args = ap.parse_args()
     demo = Path(args.demo_out)
     if args.run_demo:
@@ -79,7 +117,10 @@ def main() -> int:
         print(f"{src}: not found; run `labid demo --out {demo}` (or pass --run-demo)", file=sys.stderr)
         return 2
     with tempfile.TemporaryDirectory() as d:
-        for p in grab_panel(src) + shoot_report(src, Path(d)):
+        shots = grab_panel(src) + shoot_report(src, Path(d))
+        if args.multistart:
+            shots += grab_multistart(src, args.multistart)
+        for p in shots:
             print(p)
     return 0
 
