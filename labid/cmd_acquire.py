@@ -15,6 +15,7 @@ from .cmdutil import add_json_option, write_json
 from .errors import UserError
 from .rig import load_rig
 from .specimen import load_specimen
+from .summary import stream
 
 
 def register(sub) -> None:
@@ -82,9 +83,12 @@ def run(args) -> dict:
     finally:
         signal.signal(signal.SIGINT, old)
     rec = summary["recorded"]
-    sys.stderr.write(f"labid acquire: recorded {rec['hammer']} hammer and {rec['wave']} wave shots "
-                     f"into {args.out} ({summary['in_file']['hammer']} + {summary['in_file']['wave']} "
-                     "in the file)\n")
+    w = stream(args) or sys.stderr          # the summary: stdout, unless --json - holds it
+    w.write(f"recorded {rec['hammer']} hammer and {rec['wave']} wave shots "
+            f"into {args.out} ({summary['in_file']['hammer']} + {summary['in_file']['wave']} "
+            "in the file)\n")
+    if not summary["interrupted"]:
+        w.write(f"next: labid analyze {args.out}\n")
     if summary["interrupted"]:
         if args.json:
             write_json(summary, args.json)

@@ -8,12 +8,12 @@ features, picks and curves in the run file (``/results/analysis``). The
 from __future__ import annotations
 
 import re
-import sys
 
-from . import services
+from . import progress, services
 from .analysis import AnalysisSettings
 from .cmdutil import add_json_option
 from .errors import UserError
+from .summary import modes_table, stream
 
 _PAIR = re.compile(r"^\s*([0-9.eE+-]+)\s*[,:-]\s*([0-9.eE+-]+)\s*$")
 
@@ -67,18 +67,30 @@ def run(args) -> dict:
         wavelet=_pair(args.wavelet, "--wavelet") if args.wavelet else None,
         wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous",
         report_s0=not args.without_s0)
+    out_path = args.out or str(services.features_path(args.run))
+    if progress.enabled():      # a terminal: say what the next seconds are for
+        progress.note(f"labid analyze: {args.run}: resonance peaks and CWT group velocities")
     feats = services.run_analysis(args.run, settings, out=args.out).features
-    if getattr(args, "json", None) != "-":
+    w = stream(args)
+    if w is not None:
         m = feats.get("modal") or {}
-        for f, z in zip(m.get("frequencies_hz", []), m.get("damping_ratio", [])):
-            sys.stdout.write(f"peak {f:12.4f} Hz  damping {z:.4%}\n")
-        for w in feats.get("waves", []):
-            fr = w["frequency_hz"]
-            dropped = ", ".join(f"{k} x{n}" for k, n in sorted(w.get("dropped", {}).items(), key=lambda t: -t[1]))
-            sys.stdout.write(f"{w['mode']} {w['direction_deg']:g} deg: {len(fr)} velocities, "
-                             f"{fr[0] / 1e3:.3g}-{fr[-1] / 1e3:.3g} kHz"
-                             + (f"; dropped: {dropped}" if dropped else "") + "\n")
+        fr = m.get("frequencies_hz", [])
+        waves = feats.get("waves", []) or []
+        waves = [waves] if isinstance(waves, dict) else waves
+        n_w = sum(len(x.get("frequency_hz", [])) for x in waves)
+        if fr:
+            w.write(modes_table(fr, sigma_hz=m.get("sigma_hz")))
+        for x in waves:
+            f = x["frequency_hz"]
+            dropped = ", ".join(f"{k} x{n}" for k, n in sorted(x.get("dropped", {}).items(), key=lambda t: -t[1]))
+            w.write(f"{x['mode']} {x['direction_deg']:g} deg: {len(f)} velocities, "
+                    f"{f[0] / 1e3:.3g}-{f[-1] / 1e3:.3g} kHz" + (f"; dropped: {dropped}" if dropped else "") + "\n")
         for note in feats.get("analysis", {}).get("notes", []):
             if note.startswith("no velocity") or "not reported" in note:
-                sys.stdout.write(note + "\n")
+                w.write("dropped: " + note + "\n")
+        if args.without_s0:
+            w.write("S0: kept out of the features (--without-s0); stored in the run file only\n")
+        w.write(f"features: {out_path} ({len(fr)} resonances, {n_w} group-velocity points)\n")
+        w.write(f"stored in: {args.run} (/results/analysis)\n")
+        w.write("next: labid identify " + out_path + "\n")
     return feats

@@ -14,9 +14,11 @@ import numpy as np
 
 from engine.safe import SafeError, dispersion_from_model, safe_model
 
+from . import progress
 from .cmdutil import add_json_option
 from .errors import UserError
 from .specimen import load_specimen
+from .summary import dispersion_table, eng, stream
 
 
 def register(sub) -> None:
@@ -47,6 +49,8 @@ def run(args) -> dict:
     _check(args)
     spec = load_specimen(args.spec)
     f = np.arange(1, args.n + 1) * args.fmax / args.n
+    if args.n >= 50 and progress.enabled():     # a few seconds of SAFE solves: say what for
+        progress.note(f"labid dispersion: SAFE model of {spec.name}, {args.n} frequencies up to {args.fmax:g} Hz")
     try:
         model = safe_model(spec.laminate, args.direction_deg, fmax_hz=args.fmax)
         d = dispersion_from_model(model, f)
@@ -65,6 +69,16 @@ def run(args) -> dict:
         })
     if args.plot:
         _plot(d, spec.name, args.plot)
+    out = stream(args)
+    if out is not None:
+        out.write(f"{spec.name}: guided-wave modes along {args.direction_deg:g}°, {args.n} frequencies "
+                  f"{eng(f[0], 'Hz')} to {eng(args.fmax, 'Hz')} (SAFE, order {model.order}, {model.elements_per_ply} "
+                  f"element(s) per ply)\n")
+        out.write(dispersion_table(modes))
+        written = [x for x in (args.plot, getattr(args, "json", None)) if x]
+        out.write(("written: " + ", ".join(written)) if written else
+                  "curves not saved: add --json FILE (numbers) or --plot FILE.png (figure)")
+        out.write("\n")
     return {"specimen": spec.name, "direction_deg": args.direction_deg, "fmax_hz": args.fmax,
             "n": args.n, "order": model.order, "elements_per_ply": model.elements_per_ply,
             "modes": modes}

@@ -1,7 +1,8 @@
 """``labid modes``: free-free natural frequencies of a specimen plate (Mindlin FE).
 
 Result (``--json``): ``frequencies_hz``, the N lowest elastic modes, rigid-body
-modes excluded, ascending (CONTRACT section 3); also ``specimen``, ``mesh``
+modes excluded, ascending (CONTRACT section 3); ``families``, the (m,n) nodal-line
+label of each mode (``engine.plate.labels``: '(1,1) torsion', '(2,0)', 'in-plane'); also ``specimen``, ``mesh``
 (``nx``, ``ny`` elements, ``n_dof``, ``graded``), ``rigid_max_omega_rad_s`` (largest
 |omega| of the six excluded rigid-body modes, ~0). With ``--shapes``:
 ``mode_shapes`` = ``{"points": [[x, y], ...], "values": [[...], ...], "grid": [gx, gy],
@@ -13,16 +14,17 @@ gx x gy grid covering the plate edge to edge (x fastest), the same layout as
 from __future__ import annotations
 
 import re
-import sys
 
 import numpy as np
 
 from engine.laminate import PhysicsError
 from engine.plate import FEError, PlateModel
+from engine.plate.labels import mode_families
 
 from .cmdutil import add_json_option
 from .errors import UserError
 from .specimen import load_specimen
+from .summary import modes_table, stream
 
 _GRID_RE = re.compile(r"^\s*(\d+)\s*[xX*]\s*(\d+)\s*$")
 MAX_ELEMENTS = 60  # per side, for --mesh
@@ -66,8 +68,10 @@ def run(args) -> dict:
         modes = model.solve(args.n)
     except (FEError, PhysicsError) as e:
         raise UserError(str(e), file=spec.source) from None
+    families = mode_families(model, modes, spec.length, spec.width)
     out = {
         "frequencies_hz": [float(f) for f in modes.frequencies_hz],
+        "families": families,
         "specimen": spec.name,
         "mesh": {"nx": model.mesh.nx, "ny": model.mesh.ny, "n_dof": model.mesh.n_dof,
                  "graded": model.mesh.x_edges is not None},
@@ -81,7 +85,15 @@ def run(args) -> dict:
                               "values": model.shapes_at(modes, pts).tolist(),
                               "grid": [gx, gy], "component": "w0",
                               "scaling": "mass-normalised, 1/sqrt(kg)"}
-    if getattr(args, "json", None) != "-":
-        for i, f in enumerate(modes.frequencies_hz, 1):
-            sys.stdout.write(f"mode {i:3d}  {f:12.4f} Hz\n")
+    w = stream(args)
+    if w is not None:
+        m = out["mesh"]
+        w.write(f"{spec.name}: {args.n} lowest free-free modes ({spec.length * 1e3:g} x {spec.width * 1e3:g} mm; "
+                f"{'graded' if m['graded'] else 'uniform'} mesh {m['nx']} x {m['ny']}, {m['n_dof']} dof; "
+                f"family (m,n) = nodal lines along x and y)\n")
+        w.write(modes_table(out["frequencies_hz"], families))
+        if grid is not None:
+            w.write(f"shapes: w0 on a {grid[0]} x {grid[1]} grid edge to edge, mass-normalised (1/sqrt(kg)); "
+                    + (f"in {args.json} (mode_shapes)" if getattr(args, "json", None) else
+                       "add --json FILE to save them") + "\n")
     return out

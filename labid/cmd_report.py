@@ -1,8 +1,10 @@
 """``labid report RUN.h5 [--out REPORT.html]``: a self-contained HTML test report."""
 from __future__ import annotations
 
+from . import progress
 from .cmdutil import add_json_option
 from .report import write_report
+from .summary import stream
 
 
 def register(sub) -> None:
@@ -15,5 +17,10 @@ def register(sub) -> None:
 
 
 def run(args) -> dict:
+    if progress.enabled():      # a terminal: say what the next seconds are for
+        progress.note(f"labid report: {args.run}: drawing the figures")
     out = write_report(args.run, args.out)
+    w = stream(args)
+    if w is not None:
+        w.write(f"report: {out}\n")
     return {"out": out}

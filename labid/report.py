@@ -1,9 +1,16 @@
-"""The test report: one self-contained HTML file per run (figures as base64 PNG).
+"""The test report: one self-contained HTML file per run (figures as base64 PNG), laid out
+as a test certificate.
 
-``write_report(RUN.h5, out=None) -> path`` (``labid report``). Sections:
-specimen and setup, spectra with picks, scalogram, dispersion fit, identified
-constants with uncertainty, gap diagnosis. A section whose data the run does
-not hold is replaced by a one-line note saying what is missing.
+``write_report(RUN.h5, out=None) -> path`` (``labid report``). A header block (report
+number, revision, date, lab, client, operator, specimen ID, method) from the optional
+``[report]`` table of the specimen or rig file (docs/formats.md; the specimen's entries win),
+then: 1 specimen, method and test conditions; 2 identified constants in engineering notation
+with the expanded uncertainty U = k x std (k = 2) and the statement of what it covers, the
+fit's consistency, pairing, held constants and flags when the identification holds them;
+3 spectra with picks; 4 scalogram; 5 dispersion fit; 6 gap diagnosis; 7 signatures.
+Long tables (the picks with their sigma, the pairing, the constants by data set) are in
+appendices. A section whose data the run does not hold is replaced by a one-line note
+saying what is missing.
 
 Everything shown is read from the run file: the configuration texts, the raw
 shots and the ``/results`` groups written by the workflow (analysis,
@@ -16,181 +23,35 @@ results, never recomputed.
 """
 from __future__ import annotations
 
-import base64
 import html
-import io
 import math
 import time
 import tomllib
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from . import services
 from .errors import UserError
+from .report_figures import fig_dispersion, fig_gap, fig_scalogram, fig_spectrum, img, scalar
 from .rig import rig_from_text
 from .services import GAP_GROUPS, IDENT_GROUPS, RunData, features_of, lookup
 from .specimen import specimen_from_dict
+from .summary import constant_cells, eng
 
-
-def _waves_list(w: Any) -> list[dict]:
-    if isinstance(w, dict):
-        return [w]
-    return [x for x in (w or []) if isinstance(x, dict)]
-
-
-# ------------------------------------------------------------------ figures
-def _fig_png(fig) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    _plt().close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _img(b64: str, alt: str) -> str:
-    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
-
-
-def _plt():
-    """pyplot on the Agg backend, imported when the first figure is drawn: the panel imports
-    this module at start and does not pay matplotlib's 0.3 s until a report is written."""
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def fig_spectrum(rd: RunData, feats: dict) -> str | None:
-    spec = lookup(rd.results, ("analysis/spectrum", "analysis/modal/spectrum", "modal/spectrum"))
-    if isinstance(spec, dict) and "frequencies_hz" in spec:
-        f = np.asarray(spec["frequencies_hz"])
-        y = np.asarray(spec.get("indicator", spec.get("magnitude")))
-        y = y if y.ndim == 1 else (y ** 2).sum(axis=0)
-        label = "stored spectrum"
-    else:
-        got = services.average_spectrum(rd.hammer)
-        if got is None:
-            return None
-        f, y, kind = got
-        label = f"summed normalised {'|H1|²' if kind == 'frf' else 'auto-spectra'} of {len(rd.hammer)} hits"
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.6))
-    ax.semilogy(f[1:], y[1:], lw=0.8, color="#1f77b4", label=label)
-    picks = np.asarray((feats.get("modal") or {}).get("frequencies_hz", []), float)
-    top = float(np.nanmax(y[1:])) if len(y) > 1 else 1.0
-    for i, fp in enumerate(picks):
-        ax.axvline(fp, color="#d62728", lw=0.8, ls="--", label="picked resonances" if i == 0 else None)
-    model = _model_frequencies(rd)
-    for i, fm in enumerate(model):
-        ax.plot([fm], [top * 1.5], "v", color="#2ca02c", label="identified model" if i == 0 else None)
-    if len(picks):
-        ax.set_xlim(0, min(f[-1], 1.25 * picks.max()))
-    ax.set_xlabel("frequency (Hz)")
-    ax.set_ylabel("indicator")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.grid(alpha=0.3)
-    return _fig_png(fig)
-
-
-def _model_frequencies(rd: RunData) -> np.ndarray:
-    return services.model_frequencies(lookup(rd.results, IDENT_GROUPS))
-
-
-def fig_scalogram(rd: RunData, feats: dict) -> str | None:
-    if not rd.wave:
-        return None
-    rec = rd.wave[0]
-    chans = [c.name for c in rec.channels]
-    name = chans[-1]
-    ridge = lookup(rd.results, ("analysis/arrivals", "analysis/waves/arrivals"))
-    an = rd.results.get("analysis")
-    sc = services.scalogram(rec, name, an if isinstance(an, dict) else None, n_freqs=80)
-    t, freqs, Wm = sc.times_s, sc.frequencies_hz, sc.magnitude
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.6))
-    ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
-    if isinstance(ridge, dict) and "times_s" in ridge:
-        ax.plot(np.asarray(ridge["times_s"]) * 1e6, np.asarray(ridge["frequencies_hz"]) / 1e3, "w.-",
-                ms=3, lw=0.8, label="picked arrival ridge")
-        ax.legend(loc="upper right", fontsize=8)
-    ax.set_xlabel("time after trigger (µs)")
-    ax.set_ylabel("frequency (kHz)")
-    ax.set_title(f"|CWT| of {rec.meta.get('shot', 'wave shot')}, channel {name} ({sc.wavelet})", fontsize=9)
-    return _fig_png(fig)
-
-
-def fig_dispersion(rd: RunData, feats: dict) -> str | None:
-    ws = _waves_list(feats.get("waves"))
-    if not ws:
-        return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.6))
-    for w in ws:
-        f = np.asarray(w.get("frequency_hz", []), float)
-        v = np.asarray(w.get("group_velocity_m_s", []), float)
-        s = np.asarray(w.get("sigma_m_s", np.zeros_like(v)), float)
-        ax.errorbar(f / 1e3, v, yerr=s, fmt="o", ms=3, capsize=2,
-                    label=f"measured {w.get('mode', '')} {w.get('direction_deg', 0):g}°")
-    params = services.parameters_of(lookup(rd.results, IDENT_GROUPS))
-    lam = _laminate(rd)
-    if lam is not None:
-        for w in ws:
-            f = np.asarray(w.get("frequency_hz", []), float)
-            if f.size < 2:
-                continue
-            grid = np.linspace(f.min(), f.max(), 60)
-            mode, d = str(w.get("mode", "A0")), float(w.get("direction_deg", 0.0))
-            for label, p, style in (("nominal", None, "--"), ("identified", params, "-")):
-                if label == "identified" and not params:
-                    continue
-                try:
-                    v = services.model_group_velocity(lam, grid, mode, d, p)
-                except (ValueError, KeyError, TypeError):
-                    continue
-                ax.plot(grid / 1e3, v, style, color="#2ca02c" if p else "0.4",
-                        label=f"SAFE {mode}, {label} constants")
-    ax.set_xlabel("frequency (kHz)")
-    ax.set_ylabel("group velocity (m/s)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    return _fig_png(fig)
-
-
-def _laminate(rd: RunData):
-    """The laminate of the run's specimen, or None."""
-    try:
-        return specimen_from_dict(tomllib.loads(rd.specimen_toml), "run file").laminate
-    except Exception:  # noqa: BLE001 - the figure just lacks the model curve
-        return None
-
-
-def fig_gap(gap: dict) -> str | None:
-    effects = [e for e in (gap.get("effects") or []) if isinstance(e, dict)]
-    g = gap.get("gap") or {}
-    if not effects:
-        return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9, 3.0))
-    names = [str(e.get("name")) for e in effects]
-    after = [float(e.get("gap_after", np.nan)) for e in effects]
-    ax.barh(names[::-1], after[::-1], color="#9ecae1", label="gap after modelling the effect")
-    before = _scalar(g.get("before"))
-    if before is not None:
-        ax.axvline(before, color="#d62728", ls="--", label="gap before")
-    ax.set_xlabel("gap (misfit measure)")
-    ax.legend(fontsize=8)
-    return _fig_png(fig)
-
-
-def _scalar(v: Any) -> float | None:
-    if isinstance(v, (int, float, np.floating, np.integer)):
-        return float(v)
-    if isinstance(v, dict):
-        for k in ("total", "rms", "value", "chi2"):
-            if k in v:
-                return _scalar(v[k])
-    return None
+#: coverage factor of the expanded uncertainty (about 95 % for a normal distribution)
+K = 2.0
+#: the method the identification implements
+METHOD = ("combined low/high-frequency dynamic identification: free-free modal frequencies (plate FE) "
+          "and guided-wave group velocities (SAFE) fitted together; I. Bartoli, A. Marzani, "
+          "\"A low/high frequency combined approach for the identification of mechanical properties of "
+          "composite structural elements\", Theoret. Appl. Mech. 39(1), 1-25, Belgrade 2012")
+#: fields of the [report] table, in the order of the header block
+REPORT_FIELDS = (("lab", "Laboratory"), ("client", "Client"), ("operator", "Operator"),
+                 ("specimen_id", "Specimen ID"), ("method", "Method / standard"),
+                 ("temperature_c", "Temperature (°C)"), ("suspension", "Suspension"),
+                 ("revision", "Revision"))
+#: tables longer than this go to an appendix
+SHORT_TABLE = 12
 
 
 # ------------------------------------------------------------------ html
@@ -204,14 +65,8 @@ def _fmt(v: float) -> str:
 
 
 def _param(name: str, v: float) -> str:
-    """A constant in its usual unit: GPa for moduli, kg/m^3 for density, bare for ratios."""
-    if v is None or not math.isfinite(v):
-        return "—"
-    if name.startswith("nu"):
-        return f"{v:.4g}"
-    if name == "density":
-        return f"{v:.4g} kg/m³"
-    return f"{v / 1e9:.4g} GPa"
+    """A constant in engineering notation with its unit: '136.7 GPa', '1550 kg/m³', '0.3'."""
+    return constant_cells(name, v, None)[0]
 
 
 def _table(rows: list[list[str]], head: list[str]) -> str:
@@ -237,11 +92,12 @@ def section_setup(rd: RunData) -> str:
                     ["plies", f"{len(lam.plies)}" + (f" [{angles}]°" if angles else "")]]
             out.append(_table(rows, ["specimen", ""]))
             mats = tomllib.loads(rd.specimen_toml).get("materials", {})
-            mrows = [[html.escape(n)] + [html.escape(f"{k} = {v:g}") for k, v in m.items()]
+            mrows = [[html.escape(n)] + [html.escape(f"{k} = {_param(k, v)}" if isinstance(v, (int, float))
+                                                      else f"{k} = {v}") for k, v in m.items()]
                      for n, m in mats.items() if isinstance(m, dict)]
             width = max((len(r) for r in mrows), default=1)
             out.append(_table([r + [""] * (width - len(r)) for r in mrows],
-                              ["material"] + ["nominal constants (SI)"] + [""] * (width - 2)))
+                              ["material"] + ["nominal constants"] + [""] * (width - 2)))
         except Exception as e:  # noqa: BLE001 - a report still gets written
             out.append(_note(f"specimen text stored in the run could not be read: {e}"))
     else:
@@ -264,36 +120,129 @@ def section_setup(rd: RunData) -> str:
                f"backend {html.escape(', '.join(backends) or '—')}; "
                f"{html.escape(str(rd.attrs.get('creator', '')))}, file created "
                f"{html.escape(str(rd.attrs.get('file_time', '')))}.</p>")
-    t = services.session_state(rd).get("setup", {}).get("temperature_c")
-    if isinstance(t, (int, float)) and math.isfinite(t):
-        out.append(f"<p>Air temperature (environment probe): {t:.2f} °C</p>")
     return "".join(out)
 
 
-def section_constants(rd: RunData) -> str:
+def report_fields(rd: RunData) -> dict:
+    """The ``[report]`` table of the rig file, overridden by the specimen file's ({} if none)."""
+    out: dict = {}
+    for text in (rd.rig_toml, rd.specimen_toml):
+        try:
+            t = tomllib.loads(text or "").get("report")
+        except tomllib.TOMLDecodeError:
+            continue
+        if isinstance(t, dict):
+            out.update({k: v for k, v in t.items() if v not in (None, "")})
+    return out
+
+
+def _nominal(rd: RunData) -> dict:
+    try:
+        mats = tomllib.loads(rd.specimen_toml).get("materials", {})
+        return next(iter(mats.values())) if mats else {}
+    except (tomllib.TOMLDecodeError, StopIteration):
+        return {}
+
+
+def _conditions(rd: RunData, fields: dict, feats: dict) -> list[list[str]]:
+    """Test conditions: temperature, suspension, shots, instruments."""
+    rows = []
+    t = fields.get("temperature_c")
+    src = "[report] table"
+    if not isinstance(t, (int, float)):
+        t, src = services.session_state(rd).get("setup", {}).get("temperature_c"), "environment probe"
+    if not isinstance(t, (int, float)):
+        t, src = (feats.get("rig") or {}).get("temperature_c"), "features file (rig)"
+    rows.append(["temperature", f"{float(t):.1f} °C ({src})" if isinstance(t, (int, float)) and math.isfinite(t)
+                 else "not recorded"])
+    sus = fields.get("suspension")
+    if not sus:
+        sup = (feats.get("rig") or {}).get("supports") or []
+        sus = (f"free-free, resting on {len(sup)} soft support(s) at "
+               + ", ".join(f"({float(p.get('x', 0)) * 1e3:.0f}, {float(p.get('y', 0)) * 1e3:.0f}) mm"
+                           for p in sup if isinstance(p, dict))) if sup else "not recorded"
+    rows.append(["suspension", html.escape(str(sus))])
+    acc = (feats.get("rig") or {}).get("accelerometers") or []
+    if acc:
+        rows.append(["accelerometers", f"{len(acc)}, " + ", ".join(
+            f"{1e3 * float(a.get('mass_kg', 0)):.1f} g" for a in acc if isinstance(a, dict))
+            + " each (included in the modal model)"])
+    rows.append(["shots", f"{rd.counts.get('hammer', 0)} hammer hits, {rd.counts.get('wave', 0)} wave shots"])
+    return rows
+
+
+def section_method(rd: RunData, fields: dict, feats: dict) -> str:
+    method = fields.get("method")
+    out = [f"<p><b>Method.</b> {html.escape(str(method)) + '; ' if method else ''}{html.escape(METHOD)}.</p>"]
+    out.append(_table(_conditions(rd, fields, feats), ["test conditions", ""]))
+    return "".join(out)
+
+
+def uncertainty_statement(ident: dict) -> str:
+    """What the std covers and the coverage factor (GUM, JCGM 100:2008)."""
+    scale = ident.get("sigma_scale") or {}
+    scaled = (" The data sigmas were scaled by the Birge ratio where the fit's χ² per point exceeded 1 ("
+              + ", ".join(f"{html.escape(k)} × {float(v):.3g}" for k, v in scale.items()) + ").") if scale else ""
+    return ("<p class='unc'><b>Uncertainty.</b> u (std) is the standard uncertainty of each constant: the "
+            "posterior standard deviation of the weighted least-squares estimate, the measurement sigmas of "
+            "the features (σ of each resonance frequency, of each group velocity) propagated through the "
+            f"model's sensitivities.{scaled} It covers the scatter of the measured features only; it does not "
+            "cover model-form errors (boundary conditions, sensor masses, temperature, geometry), which the gap "
+            f"diagnosis (section 6) examines. The expanded uncertainty U = k · u uses a coverage factor k = {K:g}, "
+            "a coverage probability of about 95 % for a normal distribution (JCGM 100:2008, GUM).</p>")
+
+
+def section_constants(rd: RunData, appendix: list) -> str:
     ident = lookup(rd.results, IDENT_GROUPS)
     params = ident.get("parameters") if isinstance(ident, dict) else None
     if not isinstance(params, dict) or not params:
         return _note("no identification in this run (run labid identify, or Identify in the panel)")
-    nominal = {}
-    try:
-        mats = tomllib.loads(rd.specimen_toml).get("materials", {})
-        nominal = next(iter(mats.values())) if mats else {}
-    except tomllib.TOMLDecodeError:
-        pass
+    nominal = _nominal(rd)
+    held = ident.get("held") or {}
     rows = []
     for n, p in params.items():
-        v, s = float(p.get("value", np.nan)), float(p.get("std", np.nan))
+        if not isinstance(p, dict):
+            continue
+        v, u, U, rel = constant_cells(n, p.get("value"), p.get("std"), K)
         nom = nominal.get(n)
-        rows.append([html.escape(n), _param(n, v), _param(n, s), f"{100 * s / abs(v):.2g} %" if v else "—",
+        rows.append([html.escape(n), f"<b>{v}</b>", u, f"<b>{U}</b>", rel,
                      _param(n, float(nom)) if isinstance(nom, (int, float)) else "—"])
+    for n, val in (held.items() if isinstance(held, dict) else []):
+        rows.append([html.escape(n), _param(n, val.get("value") if isinstance(val, dict) else val),
+                     "held", "—", "—", "—"])
+    out = _table(rows, ["constant", "value", "u (std)", f"U (k={K:g})", "U / value", "nominal (specimen file)"])
+    out += uncertainty_statement(ident)
+    fit = ident.get("fit")
+    if isinstance(fit, dict):
+        chi2, dof, pv = scalar(fit.get("chi2")), scalar(fit.get("dof")), scalar(fit.get("p_value"))
+        cons = fit.get("consistent")
+        out += (f"<p><b>Fit consistency.</b> χ² = {_fmt(chi2)} for {_fmt(dof)} degrees of freedom, "
+                f"p = {_fmt(pv)}: {'consistent with the stated sigmas' if cons else 'NOT consistent'}"
+                f"{'' if cons is not None else ' (not stated)'}.</p>")
     res = ident.get("residual") or {}
     conv = ident.get("converged")
-    extra = (f"<p>converged: {html.escape(str(bool(conv)))}; residual: "
-             + ", ".join(f"{html.escape(k)} = {_fmt(_scalar(v)) if _scalar(v) is not None else '—'}"
-                         for k, v in res.items()) + "</p>")
-    out = _table(rows, ["parameter", "value", "std", "rel. std", "nominal (specimen file)"]) + extra
-    # other data sets identified separately (identification_<data>): one column each
+    out += (f"<p>Converged: {html.escape('yes' if conv else 'NO')}; relative rms residual: "
+            + ", ".join(f"{html.escape(k.replace('_rms_rel', ''))} {_fmt(scalar(v))}" for k, v in res.items())
+            + ".</p>")
+    flags = ident.get("flags") or []
+    warns = [w for w in (ident.get("warnings") or []) if isinstance(w, str)]
+    if flags or warns:
+        out += "<p><b>Flags and notes:</b></p><ul>" + "".join(
+            f"<li>{html.escape(str(f) if not isinstance(f, dict) else f.get('message', str(f)))}</li>"
+            for f in list(flags) + warns) + "</ul>"
+    budget = ident.get("uncertainty_budget")
+    if isinstance(budget, dict) and budget:
+        names = list(params)
+        brows = []
+        for src, contrib in budget.items():
+            if isinstance(contrib, dict):
+                brows.append([html.escape(str(src))] + [
+                    constant_cells(n, params[n].get("value"), contrib.get(n))[1] if n in contrib else "—"
+                    for n in names])
+        if brows:
+            out += "<p><b>Uncertainty budget</b> (standard uncertainty from each source):</p>" + _table(
+                brows, ["source"] + names)
+    # other data sets identified separately (identification_<data>): appendix
     others = {k[len("identification_"):]: v for k, v in sorted(rd.results.items())
               if k.startswith("identification_") and isinstance(v, dict) and isinstance(v.get("parameters"), dict)}
     if others:
@@ -306,13 +255,66 @@ def section_constants(rd: RunData) -> str:
             for ps in sets.values():
                 p = ps.get(n)
                 row.append("—" if not isinstance(p, dict) else
-                           f"{_param(n, float(p.get('value', np.nan)))} ± "
-                           f"{_param(n, float(p.get('std', np.nan)))}")
+                           f"{_param(n, p.get('value'))} ± {constant_cells(n, p.get('value'), p.get('std'))[1]}")
             nom = nominal.get(n)
             row.append(_param(n, float(nom)) if isinstance(nom, (int, float)) else "—")
             cells.append(row)
-        out += "<p>By data set:</p>" + _table(cells, ["parameter"] + [f"{k} data" for k in sets] + ["nominal"])
+        appendix.append(("Constants by data set", "<p>By data set (value ± u):</p>" + _table(
+            cells, ["constant"] + [f"{k} data" for k in sets] + ["nominal"])))
+        out += f"<p>The constants identified from each data set alone: Appendix {_letter(len(appendix))}.</p>"
     return out
+
+
+def _letter(i: int) -> str:
+    return "ABCDEFGHIJ"[i - 1]
+
+
+def section_picks(feats: dict, ident: Any, appendix: list) -> str:
+    """A one-line summary of the picks; their table (with sigma) and the pairing: appendix
+    when long."""
+    m = feats.get("modal") or {}
+    fr = m.get("frequencies_hz")
+    if fr is None or not len(fr):
+        return _note("no resonance picks stored in this run (run labid analyze)")
+    sig = m.get("sigma_hz") or [None] * len(fr)
+    rows = [[str(i + 1), f"{float(f):.3f}", eng(s, "Hz", 3) if s is not None else "—"]
+            for i, (f, s) in enumerate(zip(fr, sig))]
+    tab = _table(rows, ["peak", "frequency (Hz)", "σ (Hz)"])
+    out = f"<p>{len(fr)} resonances picked, {float(min(fr)):.1f} Hz to {eng(max(fr), 'Hz', 4)}.</p>"
+    if len(rows) > SHORT_TABLE:
+        appendix.append(("Resonance picks and their σ", tab))
+        out += f"<p>The picks with their σ: Appendix {_letter(len(appendix))}.</p>"
+    else:
+        out += tab
+    pairs = ident.get("pairing") if isinstance(ident, dict) else None
+    if isinstance(pairs, list) and pairs:
+        prow = []
+        for p in pairs:
+            if not isinstance(p, dict):
+                continue
+            meas, pred = scalar(p.get("measured_hz")), scalar(p.get("predicted_hz"))
+            diff = ("predicted mode without a peak" if meas is None else "peak without a mode" if pred is None
+                    else f"{100 * (pred - meas) / meas:+.2f} %")
+            prow.append([html.escape(str(p.get("peak", "—"))), "—" if meas is None else f"{meas:.3f}",
+                         html.escape(str(p.get("mode_index", "—"))), html.escape(str(p.get("family") or "—")),
+                         "—" if pred is None else f"{pred:.3f}", diff])
+        ptab = _table(prow, ["peak", "measured (Hz)", "FE mode", "family (m,n)", "predicted (Hz)", "difference"])
+        if len(prow) > SHORT_TABLE:
+            appendix.append(("Pairing of measured peaks and FE modes", ptab))
+            out += f"<p>Pairing of the peaks with the FE modes (families): Appendix {_letter(len(appendix))}.</p>"
+        else:
+            out += "<p>Pairing of the peaks with the FE modes:</p>" + ptab
+    return out
+
+
+def _effect_magnitude(e: dict) -> str:
+    unit = str(e.get("unit") or "")
+    v = scalar(e.get("magnitude"))
+    if v is None:
+        return "—"
+    if unit in ("", "1"):
+        return f"{v:.3g} (ratio)"
+    return eng(v, unit, 3) if unit.isalpha() and len(unit) <= 2 else f"{v:.3g} {html.escape(unit)}"
 
 
 def section_gap(rd: RunData) -> str:
@@ -320,61 +322,100 @@ def section_gap(rd: RunData) -> str:
     if not isinstance(gap, dict) or not gap:
         return _note("no gap diagnosis in this run (run labid diagnose, or Diagnose in the panel)")
     g = gap.get("gap") or {}
+    gunit = html.escape(str(g.get("unit") or "rms of residual/σ"))
     out = [f"<p><b>Verdict: {html.escape(str(gap.get('verdict', '—')))}</b>. Gap before: "
-           f"{html.escape(_fmt(_scalar(g.get('before'))) if _scalar(g.get('before')) is not None else '—')}, "
-           f"after: {html.escape(_fmt(_scalar(g.get('after'))) if _scalar(g.get('after')) is not None else '—')}.</p>"]
+           f"{html.escape(_fmt(scalar(g.get('before'))))}, after: {html.escape(_fmt(scalar(g.get('after'))))} "
+           f"({gunit}).</p>"]
     where = gap.get("where") or []
     if where:
         out.append("<p>Where: " + html.escape(", ".join(str(w) if not isinstance(w, dict) else
                                                        str(w.get("name", w)) for w in where)) + "</p>")
     effects = [e for e in (gap.get("effects") or []) if isinstance(e, dict)]
     if effects:
-        rows = [[str(i + 1), html.escape(str(e.get("name"))), _fmt(_scalar(e.get("magnitude"))),
-                 html.escape(str(e.get("unit", ""))), _fmt(_scalar(e.get("gap_after"))),
-                 _fmt(_scalar(e.get("score")))] for i, e in enumerate(effects)]
-        out.append(_table(rows, ["rank", "effect", "magnitude", "unit", "gap after", "score"]))
+        rows = [[str(i + 1), html.escape(str(e.get("name"))), _effect_magnitude(e),
+                 _fmt(scalar(e.get("gap_after"))), _fmt(scalar(e.get("score")))] for i, e in enumerate(effects)]
+        out.append(_table(rows, ["rank", "effect", "magnitude", f"gap after ({gunit})", "score"]))
         png = fig_gap(gap)
         if png:
-            out.append(_img(png, "gap before and after each effect"))
+            out.append(img(png, "gap before and after each effect"))
     return "".join(out)
 
 
+def section_signatures(fields: dict) -> str:
+    op = html.escape(str(fields.get("operator", "")))
+    rows = "".join(f"<tr><td>{role}</td><td>{name}</td><td class='sig'></td><td class='sig'></td></tr>"
+                   for role, name in (("Tested by", op), ("Checked by", ""), ("Approved by", "")))
+    return (f"<table class='signatures'><tr><th>role</th><th>name</th><th>signature</th><th>date</th></tr>{rows}"
+            "</table><p class='small'>This report shall not be reproduced except in full. The results relate "
+            "only to the specimen tested.</p>")
+
+
 CSS = """body{font-family:sans-serif;max-width:980px;margin:1em auto;color:#222}
-h1{font-size:1.5em}h2{font-size:1.15em;border-bottom:1px solid #ccc;margin-top:1.6em}
+h1{font-size:1.5em;margin-bottom:.2em}h2{font-size:1.15em;border-bottom:1px solid #ccc;margin-top:1.6em}
 table{border-collapse:collapse;margin:.5em 0;font-size:.9em}td,th{border:1px solid #ccc;padding:2px 6px;
 text-align:left}th{background:#f0f0f0}.note{color:#7a5a00;background:#fff6dc;padding:4px 8px;
-border-left:4px solid #e0b040}img{max-width:100%}"""
+border-left:4px solid #e0b040}img{max-width:100%}table.cert{width:100%}table.cert th{width:18%}
+.unc{font-size:.9em;background:#f4f8fc;padding:6px 8px;border-left:4px solid #7aa6d6}
+table.signatures{width:100%}td.sig{height:2.6em;width:30%}.small{font-size:.8em;color:#555}
+.appendix{page-break-before:always}"""
+
+
+def header_block(rd: RunData, run: str | Path, fields: dict) -> str:
+    sp_name = ""
+    try:
+        sp_name = str(tomllib.loads(rd.specimen_toml or "").get("name", ""))
+    except tomllib.TOMLDecodeError:
+        pass
+    rows = [["Report no.", html.escape(Path(run).stem)],
+            ["Revision", html.escape(str(fields.get("revision", "0")))],
+            ["Date of issue", time.strftime("%Y-%m-%d")],
+            ["Run file", html.escape(str(run))]]
+    for key, label in REPORT_FIELDS:
+        if key in ("revision", "temperature_c", "suspension", "method"):
+            continue
+        rows.append([label, html.escape(str(fields.get(key, "—")))])
+    rows.insert(4, ["Specimen", html.escape(sp_name or "—")])
+    rows.append(["Method", html.escape(str(fields.get("method") or "Bartoli & Marzani 2012, combined "
+                                           "modal + guided-wave identification (section 1)"))])
+    cells = "".join(f"<tr><th>{a}</th><td>{b}</td></tr>" for a, b in rows)
+    missing = [label for key, label in REPORT_FIELDS[:4] if key not in fields]
+    note = _note("no [report] table in the specimen or rig file: " + ", ".join(missing).lower()
+                 + " not stated (docs/formats.md)") if missing else ""
+    return f"<table class='cert'>{cells}</table>{note}"
 
 
 def build_report(run: str | Path) -> str:
     """The HTML text of the report of run file ``run``."""
     rd = services.open_run(run, max_shots=20)
     feats = features_of(rd)
-    parts = [f"<h1>labid test report — {html.escape(Path(run).name)}</h1>",
-             f"<p>Generated {time.strftime('%Y-%m-%d %H:%M:%S %Z')} from {html.escape(str(run))}.</p>",
-             "<h2>1. Specimen and setup</h2>", section_setup(rd),
-             "<h2>2. Spectra with picks</h2>"]
+    fields = report_fields(rd)
+    ident = lookup(rd.results, IDENT_GROUPS)
+    appendix: list[tuple[str, str]] = []
+    parts = ["<h1>Test report: elastic constants of a composite plate</h1>",
+             header_block(rd, run, fields),
+             "<h2>1. Specimen, method and test conditions</h2>", section_setup(rd),
+             section_method(rd, fields, feats),
+             "<h2>2. Identified constants</h2>", section_constants(rd, appendix),
+             "<h2>3. Spectra with picks</h2>"]
     if not rd.hammer:
         parts.append(_note("no hammer shots in this run"))
     else:
         png = fig_spectrum(rd, feats)
-        parts.append(_img(png, "spectra with picks") if png else _note("no spectrum"))
-        m = feats.get("modal") or {}
-        fr = m.get("frequencies_hz")
-        if fr is not None and len(fr):
-            sig = m.get("sigma_hz", [np.nan] * len(fr))
-            parts.append(_table([[str(i + 1), f"{float(f):.3f}", f"{float(s):.3g}"]
-                                 for i, (f, s) in enumerate(zip(fr, sig))], ["mode", "frequency (Hz)", "σ (Hz)"]))
-        else:
-            parts.append(_note("no resonance picks stored in this run (run labid analyze)"))
-    parts.append("<h2>3. Scalogram</h2>")
+        parts.append(img(png, "spectra with picks") if png else _note("no spectrum"))
+    if rd.hammer or (feats.get("modal") or {}).get("frequencies_hz"):
+        parts.append(section_picks(feats, ident, appendix))
+    parts.append("<h2>4. Scalogram</h2>")
     png = fig_scalogram(rd, feats) if rd.wave else None
-    parts.append(_img(png, "scalogram") if png else _note("no wave shots in this run"))
-    parts.append("<h2>4. Dispersion fit</h2>")
+    parts.append(img(png, "scalogram") if png else _note("no wave shots in this run"))
+    parts.append("<h2>5. Dispersion fit</h2>")
     png = fig_dispersion(rd, feats)
-    parts.append(_img(png, "group velocity") if png else _note("no group velocities in this run"))
-    parts += ["<h2>5. Identified constants</h2>", section_constants(rd),
-              "<h2>6. Gap diagnosis</h2>", section_gap(rd)]
+    parts.append(img(png, "group velocity") if png else _note("no group velocities in this run"))
+    parts += ["<h2>6. Gap diagnosis</h2>", section_gap(rd),
+              "<h2>7. Signatures</h2>", section_signatures(fields)]
+    for i, (title, body) in enumerate(appendix, 1):
+        parts.append(f"<h2 class='appendix'>Appendix {_letter(i)}. {html.escape(title)}</h2>{body}")
+    parts.append(f"<p class='small'>Generated by labid {time.strftime('%Y-%m-%d %H:%M:%S %Z')} from "
+                 f"{html.escape(str(run))}, revision {html.escape(str(fields.get('revision', '0')))}.</p>")
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>labid report {html.escape(Path(run).name)}"
             f"</title><style>{CSS}</style></head><body>{''.join(parts)}</body></html>\n")
 

@@ -81,8 +81,9 @@ def test_report_shows_stored_results(run_file):
                             "score": 0.9}]}
         st.write_group("diagnosis", {"json": json.dumps(gap)})
     html = build_report(run_file)
-    # E1 130 GPa +- 2.6 GPa = 2 %, against the specimen file's 136.7 GPa
-    assert "130 GPa" in html and "2.6 GPa" in html and "2 %" in html and "136.7 GPa" in html
+    # E1 130 GPa, u = 2.6 GPa, U = k u = 5.2 GPa (k = 2) = 4 %, against the specimen file's 136.7 GPa
+    assert "130.0 GPa" in html and "2.6 GPa" in html and "5.2 GPa" in html and "4 %" in html
+    assert "136.7 GPa" in html
     assert "Verdict: sensor_mass" in html and "modal:band:low" in html
     assert "120.000" in html           # the pick table
     assert "no group velocities" not in html and "no identification" not in html
@@ -113,6 +114,70 @@ def test_constants_of_each_data_set_side_by_side(run_file):
             st.write_group(name, {"json": json.dumps({"parameters": {"E1": {"value": e1, "std": 1e9}},
                                                       "converged": True})})
     html = build_report(run_file)
-    assert "By data set:" in html
-    for text in ("130 GPa ± 1 GPa", "131 GPa ± 1 GPa", "125 GPa ± 1 GPa", "modal data", "waves data"):
+    assert "By data set (value ± u):" in html and "Appendix A. Constants by data set" in html
+    for text in ("130.0 GPa ± 1.0 GPa", "131.0 GPa ± 1.0 GPa", "125.0 GPa ± 1.0 GPa", "modal data", "waves data"):
         assert text in html
+
+
+# ---------------------------------------------------------------- the report as a test certificate
+def _run_with_report_table(path, table: str):
+    """A run whose specimen text carries a [report] table."""
+    with RunStore(path, "a") as st:
+        st.write_config(_spec_text() + "\n" + table, read_rig_text("default")[0])
+        st.append_shot(hammer_record(), "hammer")
+    return path
+
+
+def test_certificate_fields_from_the_report_table(tmp_path):
+    run_file = _run_with_report_table(tmp_path / "cert.h5", '[report]\nlab = "Composites Lab A"\nclient = "ACME Aero"\n'
+                                 'operator = "J. Smith"\nspecimen_id = "P-0042"\ntemperature_c = 21.5\n'
+                                 'suspension = "foam blocks"\nrevision = "B"\n')
+    html = build_report(run_file)
+    for text in ("Composites Lab A", "ACME Aero", "J. Smith", "P-0042", "21.5 °C ([report] table)",
+                 "foam blocks", "<th>Revision</th><td>B</td>", "Bartoli", "Tested by", "Approved by"):
+        assert text in html, text
+    assert "no [report] table" not in html
+
+
+def test_missing_report_table_is_said_not_fatal(run_file):
+    html = build_report(run_file)
+    assert "no [report] table in the specimen or rig file" in html
+    assert "Signatures" in html and "temperature" in html
+
+
+def test_uncertainty_statement_and_long_tables_in_an_appendix(run_file):
+    f = list(np.linspace(50.0, 1500.0, 39))           # 39 picks, as the demo's
+    with RunStore(run_file, "a") as st:
+        st.write_group("analysis", {"features": {"json": json.dumps(
+            {"modal": {"frequencies_hz": f, "sigma_hz": [1e-5 * x for x in f]}})}})
+        ident = {"parameters": {"E1": {"value": 1.367e11, "std": 4.2e7}, "nu12": {"value": 0.3, "std": 0.004}},
+                 "converged": True, "held": {"density": 1550.0},
+                 "fit": {"chi2": 30.1, "dof": 33, "p_value": 0.61, "consistent": True},
+                 "flags": ["G13 weakly constrained"],
+                 "pairing": [{"peak": 1, "measured_hz": 50.0, "mode_index": 1, "family": "(1,1) torsion",
+                              "predicted_hz": 50.5},
+                             {"peak": None, "measured_hz": None, "mode_index": 2, "family": "(0,2)",
+                              "predicted_hz": 60.0}]}
+        st.write_group("identification", {"json": json.dumps(ident)})
+    html = build_report(run_file)
+    # k = 2: U(E1) = 84 MPa = 0.084 GPa, printed in the value's prefix
+    assert "136.7 GPa" in html and "0.042 GPa" in html and "0.084 GPa" in html
+    assert "coverage factor k = 2" in html and "does not cover model-form errors" in html
+    assert "χ² = 30.1 for 33 degrees of freedom, p = 0.61: consistent" in html
+    assert "held" in html and "1550 kg/m³" in html and "G13 weakly constrained" in html
+    assert "(1,1) torsion" in html and "+1.00 %" in html and "predicted mode without a peak" in html
+    # the 39-row sigma table is in an appendix, after the signatures
+    body, appendix = html.split("7. Signatures", 1)
+    assert "Appendix A. Resonance picks and their σ" in appendix and "1500.000" not in body
+    assert "39 resonances picked, 50.0 Hz to 1.500 kHz" in body
+    assert appendix.count("<tr>") >= 40
+    assert "15.0 mHz" in appendix                        # sigma of the 1500 Hz pick: 1e-5 x 1500 Hz
+
+
+def test_no_constant_in_plain_e_notation(run_file):
+    with RunStore(run_file, "a") as st:
+        st.write_group("identification", {"json": json.dumps(
+            {"parameters": {"E1": {"value": 1.367e11, "std": 4.2e7}}, "converged": True})})
+    html = build_report(run_file)
+    text = re.sub(r"<[^>]+>|data:image/png;base64,[A-Za-z0-9+/=]+", " ", html)
+    assert not re.search(r"\d\.\d+e[+-]\d\d", text), re.findall(r".{30}\d\.\d+e[+-]\d\d.{10}", text)

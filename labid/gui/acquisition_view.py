@@ -18,6 +18,7 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QGridLayo
 
 from .. import services
 from ..errors import UserError
+from .common import empty_note
 from .rigtext import set_device_values
 
 COLORS = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf"]
@@ -152,6 +153,8 @@ class AcquisitionView(QWidget):
         self.done = {"hammer": 0, "wave": 0}
         self.planned = {"hammer": 0, "wave": 0}
         self._pending = None
+        self._acquired_into: str | None = None
+        self.reload()
 
     # -- rig-dependent controls ------------------------------------------------
     def _rig_changed(self, rig) -> None:
@@ -269,6 +272,7 @@ class AcquisitionView(QWidget):
         for lab in self.lights.values():
             lab.set(None)
         self.main.set_run_path(str(path), reload=False)
+        self._acquired_into = str(path)
 
         def work(progress, should_stop):
             return services.acquire(path, rig, spec, backend=backend, effects=effects, seed=seed,
@@ -356,6 +360,37 @@ class AcquisitionView(QWidget):
         self._finish()
         self.log.addItem("error: " + msg)
         self.log.scrollToBottom()
+
+    # -- an opened run ------------------------------------------------------------------
+    def reload(self) -> None:
+        """Show what the run file holds when no acquisition is running: shot counts
+        and the last stored record (the last wave shot if any, else the last hit)."""
+        run = self.main.run_path
+        if self.job is not None or (run and run == self._acquired_into):
+            return      # acquiring, or just acquired here: the live view already shows it
+        counts = {"hammer": 0, "wave": 0}
+        if run and Path(run).exists():
+            try:
+                counts.update(services.open_run(run, max_shots=0).counts)
+            except (UserError, OSError):
+                pass
+        self.done = {k: int(counts.get(k, 0)) for k in ("hammer", "wave")}
+        self.planned = dict(self.done)
+        self.counter.setText(f"in the run file: {self.done['hammer']} hits · {self.done['wave']} wave shots")
+        kind = "wave" if self.done["wave"] else ("hammer" if self.done["hammer"] else None)
+        if kind is None:
+            self.trace_plot.clear()
+            self.spec_plot.clear()
+            empty_note(self.trace_plot, "no data yet: no shot recorded in this run")
+            empty_note(self.spec_plot, "no data yet")
+            return
+        try:
+            rec = services.shots(run, kind)[-1]
+        except (UserError, OSError, IndexError) as e:
+            self.main.message(f"cannot read the last {kind} shot of {run}: {e}", error=True)
+            return
+        self.show_record(display_record(kind, rec))
+        self.trace_plot.setTitle(f"time traces: last stored {kind} record ({rec.meta.get('shot', '')})")
 
     # -- session state ----------------------------------------------------------------
     def state(self) -> dict:

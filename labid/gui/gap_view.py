@@ -11,11 +11,22 @@ from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QT
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
 from .. import services
-from .common import Banner, plot
+from ..summary import eng
+from .common import Banner, empty_note, plot
 
 
 def _f(v, fmt=".3g") -> str:
     return "—" if not isinstance(v, (int, float)) or not np.isfinite(v) else format(v, fmt)
+
+
+def _magnitude(e: dict) -> str:
+    """An effect's magnitude in engineering notation with its unit ('561 µm'; bare when unitless)."""
+    unit = str(e.get("unit") or "")
+    if unit in ("", "1"):
+        return _f(e.get("magnitude"))
+    if unit.isalpha() and len(unit) <= 2:          # m, s, kg, K: an SI prefix reads well
+        return eng(e.get("magnitude"), unit, 3)
+    return f"{_f(e.get('magnitude'))} {unit}"
 
 
 class GapView(QWidget):
@@ -79,6 +90,12 @@ class GapView(QWidget):
         res = self.main.read_results("diagnosis")
         if res and self.job is None:
             self.show_result(res)
+        elif self.job is None and self.result is None:
+            for w in (self.resid_plot, self.group_plot):
+                w.clear()
+                w.setXRange(0, 1)
+                w.setYRange(0, 1)
+                empty_note(w, "no data yet: " + ("press Diagnose" if doc else "no measured features"))
 
     def diagnose(self) -> None:
         doc = self.features()
@@ -126,7 +143,7 @@ class GapView(QWidget):
         effects = [e for e in (res.get("effects") or []) if isinstance(e, dict)]
         self.table.setRowCount(len(effects))
         for i, e in enumerate(effects):
-            cells = [str(i + 1), str(e.get("name")), f"{_f(e.get('magnitude'))} {'' if e.get('unit') == '1' else e.get('unit', '')}".strip(),
+            cells = [str(i + 1), str(e.get("name")), _magnitude(e),
                      _f(e.get("gap_after")), _f(e.get("score")), "yes" if e.get("detectable", True) else "no"]
             for j, c in enumerate(cells):
                 item = QTableWidgetItem(c)
@@ -134,6 +151,8 @@ class GapView(QWidget):
                 self.table.setItem(i, j, item)
         # residuals before/after per feature
         self.resid_plot.clear()
+        self.resid_plot.enableAutoRange()
+        self.group_plot.enableAutoRange()
         ft = res.get("features") or {}
         r0 = np.asarray(ft.get("residual_before", []), float)
         r1 = np.asarray(ft.get("residual_after", []), float)

@@ -8,6 +8,7 @@ model evaluation and stops at the next one when cancelled.
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pyqtgraph as pg
@@ -18,11 +19,28 @@ from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, 
 
 from .. import services
 from ..errors import UserError
+from ..estimation import default_params
 from .common import Banner, empty_note, plot
 
 DATA = ("modal", "waves", "combined")
 SYMBOLS = ("o", "s", "t", "d", "+", "x")
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+
+
+def _num(v, default: float = math.nan) -> float:
+    """A stored number as float; None, text or a missing entry as ``default`` (NaN)."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return default
+    return x
+
+
+def _data_of(out: dict) -> str:
+    """'modal', 'waves' or 'combined' from the blocks of a result that does not say (CLI)."""
+    kinds = {str(k).split("[")[0].split(":")[0] for k in (out.get("blocks") or {})}
+    kinds = {"waves" if k.startswith("wave") else k for k in kinds}
+    return "combined" if {"modal", "waves"} <= kinds else (next(iter(kinds)) if len(kinds) == 1 else "?")
 
 
 def _unit(name: str) -> tuple[str, float]:
@@ -31,6 +49,19 @@ def _unit(name: str) -> tuple[str, float]:
     if name == "density":
         return "kg/m³", 1.0
     return "GPa", 1e-9
+
+
+def default_names(doc: dict, isotropic: bool) -> tuple[str, ...]:
+    """The constants ``labid identify`` fits by default for features ``doc`` (the CLI's
+    own rule, ``estimation.default_params``, asked without building the FE model)."""
+    waves = doc.get("waves") or []
+    waves = [waves] if isinstance(waves, dict) else waves
+    blocks = [SimpleNamespace(kind="modal", name="modal")] if doc.get("modal") else []
+    blocks += [SimpleNamespace(kind="waves", name=f"waves[{i}]:{w.get('mode', 'A0')}")
+               for i, w in enumerate(waves) if isinstance(w, dict)]
+    shape = SimpleNamespace(isotropic=isotropic, blocks=blocks,
+                            kinds=tuple(sorted({b.kind for b in blocks})))
+    return tuple(default_params(shape))
 
 
 class IdentificationView(QWidget):
@@ -89,6 +120,14 @@ class IdentificationView(QWidget):
         self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.verticalHeader().setVisible(False)
+        # measured peaks against FE modes with their (m,n) family, when the result has a pairing
+        self.pairing_table = QTableWidget(0, 6)
+        self.pairing_table.setHorizontalHeaderLabels(["peak", "measured (Hz)", "FE mode", "family",
+                                                      "predicted (Hz)", "difference"])
+        self.pairing_table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
+        self.pairing_table.horizontalHeader().setStretchLastSection(True)
+        self.pairing_table.verticalHeader().setVisible(False)
+        self.pairing_table.setVisible(False)
         self.summary = QLabel("")
         self.summary.setWordWrap(True)
         self.summary.setMinimumHeight(3 * self.summary.fontMetrics().height())
@@ -107,6 +146,7 @@ class IdentificationView(QWidget):
         left.addWidget(ctl)
         left.addWidget(self.param_box)
         left.addWidget(self.table, 1)
+        left.addWidget(self.pairing_table, 1)
         left.addWidget(self.summary)
         lw = QWidget()
         lw.setLayout(left)
@@ -173,6 +213,10 @@ class IdentificationView(QWidget):
         return next(d for d, r in self.data_radios.items() if r.isChecked())
 
     def reload(self) -> None:
+        try:
+            st = self.main.read_results("identification")
+        except Exception:  # noqa: BLE001 - an unreadable group just is not shown
+            st = None
         doc = self.features()
         if not doc:
             self.banner.info("no measured features yet: acquire and analyse (Modes, Waves tabs), "
@@ -193,16 +237,24 @@ class IdentificationView(QWidget):
                 spec = self.main.specimen_for_features(doc)
                 mat = next(iter(spec.laminate.materials.values()))
                 names = tuple(mat.param_names)
-                problem_default = ("E", "G") if mat.isotropic else ("E1", "E2", "G12", "G13", "G23")
-                self._set_params(names, problem_default)
+                # the constants of the stored identification (CLI or panel), else the CLI's default
+                stored = tuple((st or {}).get("parameters") or ()) if isinstance(st, dict) else ()
+                self._set_params(names, stored or default_names(doc, mat.isotropic))
             except (UserError, StopIteration, AttributeError):
                 pass
-        try:
-            st = self.main.read_results("identification")
-        except Exception:  # noqa: BLE001 - an unreadable group just is not shown
-            st = None
         if st and self.job is None:
             self.show_result(st)
+        elif self.job is None and self.result is None:
+            self.show_empty()
+
+    def show_empty(self) -> None:
+        """Plots with a 'no data yet' note instead of bare 0-1 axes."""
+        for w, text in ((self.history_plot, "no data yet: press Identify"),
+                        (self.ident_plot, "no data yet"), (self.multi_plot, "no data yet")):
+            w.clear()
+            w.setXRange(0, 1)
+            w.setYRange(0, 1)
+            empty_note(w, text)
 
     def _specimen_name(self, doc: dict) -> str:
         s = doc.get("specimen")
@@ -280,31 +332,38 @@ class IdentificationView(QWidget):
     def show_result(self, out: dict) -> None:
         self.result = out
         params = out.get("parameters") or {}
-        nominal = out.get("nominal") or {}
+        nominal = out.get("nominal") or self._specimen_nominal()
+        for w in (self.history_plot, self.ident_plot):
+            w.enableAutoRange()
         idp = (out.get("identifiability") or {}).get("parameters") or {}
         self.table.setRowCount(len(params))
         for i, (n, p) in enumerate(params.items()):
             unit, sc = _unit(n)
-            v, s = float(p["value"]), float(p["std"])
-            cells = [n, f"{v * sc:.4g} ± {s * sc:.2g} {unit}", f"{100 * s / abs(v):.2g} %" if v else "—",
-                     f"{float(nominal[n]) * sc:.4g}" if n in nominal else "—",
+            v, s = _num(p.get("value")), _num(p.get("std"))
+            cells = [n, f"{v * sc:.4g} ± {s * sc:.2g} {unit}", f"{100 * s / abs(v):.2g} %" if v and math.isfinite(v) else "—",
+                     f"{_num(nominal[n]) * sc:.4g}" if n in nominal else "—",
                      "yes" if (idp.get(n) or {}).get("identified") else "no"]
             for j, c in enumerate(cells):
                 item = QTableWidgetItem(c)
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
                 self.table.setItem(i, j, item)
+        self.show_pairing(out.get("pairing"))
         res = out.get("residual") or {}
         rs = ", ".join(f"{k} {v:.2e}" for k, v in res.items() if isinstance(v, (int, float)))
-        self.summary.setText(f"data {out.get('data', '?')} · method {out.get('method', '?')} · "
+        self.summary.setText(f"data {out.get('data') or _data_of(out)} · method {out.get('method', '?')} · "
                              f"converged {bool(out.get('converged'))} · residual {rs or '—'}")
         # convergence history
         self.history_plot.clear()
         hist = out.get("history") or []
         it = [h.get("iteration", i) for i, h in enumerate(hist) if isinstance(h.get("cost"), (int, float))]
         cost = [max(float(h["cost"]), 1e-30) for h in hist if isinstance(h.get("cost"), (int, float))]
+        if not cost:
+            empty_note(self.history_plot, "no convergence history in this result")
         if cost:
+            # a staged fit restarts its iteration count: one line per stage, not a jump back
+            conn = np.r_[np.diff(np.asarray(it, float)) > 0, False]
             self.history_plot.plot(it, cost, pen=pg.mkPen("#1f77b4", width=2), symbol="o", symbolSize=6,
-                                   symbolBrush="#1f77b4")
+                                   symbolBrush="#1f77b4", connect=conn)
         # multi-start scatter
         self.multi_plot.clear()
         runs = out.get("multi_start") or []
@@ -317,9 +376,9 @@ class IdentificationView(QWidget):
             self.multi_plot.enableAutoRange()
             idx = np.arange(1, len(runs) + 1)
             for k, n in enumerate(names):
-                nom = float(nominal.get(n, params[n]["value"]))
-                vals = np.array([float((r.get("values") or {}).get(n, np.nan)) for r in runs]) / nom
-                starts = np.array([float(r["start"].get(n, np.nan)) for r in runs]) / nom
+                nom = _num(nominal.get(n, params[n].get("value")))
+                vals = np.array([_num((r.get("values") or {}).get(n)) for r in runs]) / nom
+                starts = np.array([_num((r.get("start") or {}).get(n)) for r in runs]) / nom
                 c = COLORS[k % len(COLORS)]
                 self.multi_plot.plot(idx, starts, pen=None, symbol="x", symbolSize=7, symbolPen=pg.mkPen(c),
                                      symbolBrush=None, name="starts (×, same colours)" if k == 0 else None)
@@ -333,18 +392,47 @@ class IdentificationView(QWidget):
         thr = (out.get("identifiability") or {}).get("rel_threshold")
         for k, (bname, b) in enumerate(blocks.items()):
             rs_ = b.get("rel_std") or {}
-            y = np.array([max(float(rs_.get(n, np.nan)), 1e-12) for n in names])
+            y = np.array([max(_num(rs_.get(n)), 1e-12) for n in names])
             x = np.arange(len(names)) + 0.12 * (k - (len(blocks) - 1) / 2)
             c = COLORS[k % len(COLORS)]
             self.ident_plot.plot(x, y, pen=None, symbol=SYMBOLS[k % len(SYMBOLS)], symbolSize=9,
                                  symbolBrush=c, symbolPen=None, name=f"{bname} alone")
-        comb = np.array([max(float((idp.get(n) or {}).get("rel_std", np.nan)), 1e-12) for n in names])
+        comb = np.array([max(_num((idp.get(n) or {}).get("rel_std")), 1e-12) for n in names])
         if names:
             self.ident_plot.plot(np.arange(len(names)), comb, pen=None, symbol="star", symbolSize=12,
                                  symbolBrush="k", name="all data")
         if isinstance(thr, (int, float)) and names:
             self.ident_plot.addItem(pg.InfiniteLine(math.log10(thr), angle=0,
                                                     pen=pg.mkPen("#d62728", style=Qt.DashLine)))
+
+    def show_pairing(self, pairs) -> None:
+        """The pairing table of a result (hidden when it has none)."""
+        pairs = [p for p in pairs if isinstance(p, dict)] if isinstance(pairs, list) else []
+        self.pairing_table.setVisible(bool(pairs))
+        self.pairing_table.setRowCount(len(pairs))
+        for i, p in enumerate(pairs):
+            meas, pred = _num(p.get("measured_hz")), _num(p.get("predicted_hz"))
+            diff = ("predicted mode without a peak" if not math.isfinite(meas) else
+                    "peak without a mode" if not math.isfinite(pred) else f"{100 * (pred - meas) / meas:+.2f} %")
+            cells = ["—" if p.get("peak") is None else str(p.get("peak")),
+                     "—" if not math.isfinite(meas) else f"{meas:.3f}",
+                     "—" if p.get("mode_index") is None else str(p.get("mode_index")),
+                     str(p.get("family") or "—"), "—" if not math.isfinite(pred) else f"{pred:.3f}", diff]
+            for j, c in enumerate(cells):
+                item = QTableWidgetItem(c)
+                item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                self.pairing_table.setItem(i, j, item)
+
+    def _specimen_nominal(self) -> dict:
+        """Nominal constants of the specimen of the features (a CLI result stores none)."""
+        doc = self.features()
+        if not doc:
+            return {}
+        try:
+            spec = self.main.specimen_for_features(doc)
+            return dict(next(iter(spec.laminate.materials.values())).params())
+        except (UserError, StopIteration, AttributeError, TypeError):
+            return {}
 
     # -- session state ----------------------------------------------------------------------
     def state(self) -> dict:

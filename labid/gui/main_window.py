@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Callable
 
+from PySide6.QtCore import QTimer
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QPushButton, QTabWidget)
 
@@ -18,6 +19,7 @@ from .. import services
 from ..errors import UserError
 from ..jsonio import to_jsonable
 from ..report import write_report
+from ..summary import next_step
 from .acquisition_view import AcquisitionView
 from .gap_view import GapView
 from .identification_view import IdentificationView
@@ -63,7 +65,10 @@ class MainWindow(QMainWindow):
         self.cancel_btn = QPushButton("Cancel job")
         self.cancel_btn.setVisible(False)
         self.cancel_btn.clicked.connect(self.cancel_job)
+        self.step_label = QLabel("")
+        self.step_label.setStyleSheet("color: #1f4e79;")
         sb.addWidget(self.status_label, 1)
+        sb.addPermanentWidget(self.step_label)
         sb.addPermanentWidget(self.run_label)
         sb.addPermanentWidget(self.cancel_btn)
 
@@ -79,6 +84,8 @@ class MainWindow(QMainWindow):
             m.addAction(a)
         if run_path:
             self.open_run(run_path)
+        else:
+            self.update_step()
 
     # -- messages ------------------------------------------------------------------
     def message(self, text: str, error: bool = False) -> None:
@@ -128,7 +135,8 @@ class MainWindow(QMainWindow):
                 self.job = None
                 self.cancel_btn.setVisible(False)
             self._side_jobs.discard(job)
-            job.release()
+            # released once every slot of 'ended' has run (a test's waitSignal among them)
+            QTimer.singleShot(0, job.release)
             if exclusive and name in AUTOSAVE_AFTER:
                 self.save_session(quiet=True)
 
@@ -181,6 +189,19 @@ class MainWindow(QMainWindow):
         for view in self.views.values():
             if hasattr(view, "reload"):
                 view.reload()
+        self.update_step()
+
+    def update_step(self) -> None:
+        """The current step of the run and the next one, in the status bar."""
+        counts, names = {}, set(self._mem_results)
+        if self.run_path and Path(self.run_path).exists():
+            try:
+                rd = services.open_run(self.run_path, max_shots=0)
+                counts, names = rd.counts, names | set(rd.results)
+            except (UserError, OSError):
+                pass
+        current, nxt = next_step(counts, names)
+        self.step_label.setText(f"now: {current}  →  next: {nxt}")
 
     # -- results shared by the views ------------------------------------------------------------
     def read_results(self, name: str):
@@ -197,6 +218,12 @@ class MainWindow(QMainWindow):
 
     def store_results(self, name: str, data: dict) -> bool:
         """Write ``data`` under /results/<name> (structured + a JSON copy)."""
+        try:
+            return self._store_results(name, data)
+        finally:
+            self.update_step()
+
+    def _store_results(self, name: str, data: dict) -> bool:
         if not self.run_path:
             self._mem_results[name] = to_jsonable(data)
             self.message(f"{name}: kept in memory only (no run file)", error=True)
@@ -250,6 +277,7 @@ class MainWindow(QMainWindow):
         self.message("analysis done: " + analysis_summary(out))
         for v in (self.identification, self.gap):
             v.reload()
+        self.update_step()
 
     def save_modal_picks(self, peaks) -> bool:
         if not self.run_path:
@@ -317,18 +345,28 @@ class MainWindow(QMainWindow):
 
         return self.start_job("report", work, lambda path: self.message(f"report written: {path}"))
 
-    def closeEvent(self, e) -> None:  # noqa: N802
-        if self.job is not None:          # stop the running job (an acquisition keeps its shots)
-            self.job.cancel()
-            self.job.wait(15000)
-            self.job = None
-        self.save_session(quiet=True)
-        for job in list(self._side_jobs):
+    def shutdown_jobs(self, wait_ms: int = 15000) -> None:
+        """Cancel every job of this window and disconnect it, so that nothing it still
+        delivers reaches a widget being deleted. The exclusive job (an acquisition keeps
+        its shots) gets up to ``wait_ms`` to finish its shot and close the run file."""
+        jobs = list(self._side_jobs) + ([self.job] if self.job is not None else [])
+        for job in jobs:
             job.cancel()
-        for job in list(self._side_jobs):
-            job.wait(5000)
-        super().closeEvent(e)
+        if self.job is not None:
+            self.job.wait(wait_ms)
+        for job in jobs:
+            job.release()
+        self.job = None
+        self._side_jobs.clear()
+        self.cancel_btn.setVisible(False)
+        for view in self.views.values():
+            if getattr(view, "job", None) is not None:
+                view.job = None
 
+    def closeEvent(self, e) -> None:  # noqa: N802
+        self.shutdown_jobs()
+        self.save_session(quiet=True)
+        super().closeEvent(e)
 
 
 def show_analysis(main: MainWindow, an) -> None:

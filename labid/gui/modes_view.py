@@ -16,7 +16,7 @@ from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QT
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
 from .. import services
-from .common import Banner, plot
+from .common import Banner, empty_note, plot
 
 
 class ModesView(QWidget):
@@ -27,6 +27,7 @@ class ModesView(QWidget):
         self.freqs = None           # (nf,) Hz
         self.indicator = None       # (nf,) curve shown
         self.peaks: tuple = ()      # engine.modal.Peak
+        self._features: dict = {}   # the run's features: the sigma identification uses
         self.edited = False
         self.banner = Banner()
         self.analyze_btn = QPushButton("Analyze run")
@@ -37,8 +38,9 @@ class ModesView(QWidget):
         self.plot.setLogMode(y=True)
         self.plot.addLegend(offset=(-5, 5))
         self.plot.scene().sigMouseClicked.connect(self._clicked)
-        self.table = QTableWidget(0, 5)
-        self.table.setHorizontalHeaderLabels(["f (Hz)", "σ (Hz)", "ζ (%)", "conf. (M: manual)", "model (Hz)"])
+        self.table = QTableWidget(0, 6)
+        self.table.setHorizontalHeaderLabels(["f (Hz)", "σ (Hz)", "ζ (%)", "conf. (M: manual)", "model (Hz)",
+                                              "mode family"])
         self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.verticalHeader().setVisible(True)
@@ -62,6 +64,7 @@ class ModesView(QWidget):
     # -- data ------------------------------------------------------------------------
     def reload(self) -> None:
         self.analyze_btn.setEnabled(self.main.run_path is not None)
+        self._features = self.main.features() or {}
         if self.spec is None:
             res = self.main.read_results("analysis")
             sp = (res or {}).get("spectrum")
@@ -81,6 +84,7 @@ class ModesView(QWidget):
     def set_modal(self, spec, peaks, indicator=None, edited: bool = False) -> None:
         """Show spectra ``spec`` (engine.modal.Spectra) and ``peaks``."""
         self.spec = spec
+        self._features = self.main.features() or {}
         self.freqs = spec.frequencies_hz
         self.indicator = services.spectrum_indicator(spec) if indicator is None else np.asarray(indicator)
         self.peaks = tuple(peaks)
@@ -90,6 +94,31 @@ class ModesView(QWidget):
                          f"({'H1' if spec.kind == 'frf' else 'auto-spectra'}), Δf = {spec.df:.3g} Hz · "
                          f"{len(self.peaks)} peaks")
         self._draw()
+
+    def sigma_of(self, f_hz: float, fit_sigma: float) -> tuple[float, bool]:
+        """The sigma (Hz) identification uses for the pick at ``f_hz``: the run's features
+        file value (one source of truth), else the peak fit's own (unsaved pick), flagged."""
+        m = self._features.get("modal") or {}
+        fr = np.asarray(m.get("frequencies_hz") or [], float)
+        sg = np.asarray(m.get("sigma_hz") or [], float)
+        if fr.size and sg.size == fr.size:
+            i = int(np.argmin(abs(fr - f_hz)))
+            if abs(fr[i] - f_hz) <= 1e-9 * max(abs(f_hz), 1.0):
+                return float(sg[i]), True
+        return float(fit_sigma), False
+
+    def families(self) -> dict[float, str]:
+        """{measured Hz: 'FE mode k (m,n)'} from the identification's pairing, if it has one."""
+        ident = self.main.read_results("identification")
+        out = {}
+        pairs = ident.get("pairing") if isinstance(ident, dict) else None
+        for p in pairs if isinstance(pairs, list) else []:
+            if isinstance(p, dict) and p.get("measured_hz") is not None:
+                try:
+                    out[float(p["measured_hz"])] = (f"{p.get('mode_index', '?')} {p.get('family') or ''}").strip()
+                except (TypeError, ValueError):
+                    continue
+        return out
 
     def model_frequencies(self) -> np.ndarray:
         return services.model_frequencies(self.main.read_results("identification"))
@@ -135,6 +164,8 @@ class ModesView(QWidget):
         if ok:
             self.edited = False
             self.save_btn.setEnabled(False)
+            self._features = self.main.features() or {}
+            self._draw()
         return ok
 
     # -- drawing ----------------------------------------------------------------------------
@@ -142,7 +173,13 @@ class ModesView(QWidget):
         self.plot.clear()
         if self.freqs is None:
             self.table.setRowCount(0)
+            self.plot.setLogMode(y=False)
+            self.plot.setXRange(0, 1)
+            self.plot.setYRange(0, 1)
+            empty_note(self.plot, "no data yet: " + ("press 'Analyze run'" if self.main.run_path
+                                                     else "acquire hammer hits first"))
             return
+        self.plot.setLogMode(y=True)
         f = self.freqs
         y = np.maximum(self.indicator, 1e-30)
         self.plot.plot(f[1:], y[1:], pen=pg.mkPen("#1f77b4", width=1), name="summed normalised spectrum")
@@ -166,11 +203,15 @@ class ModesView(QWidget):
         fmax = 1.25 * max(fp.max() if fp.size else f[-1] / 1.25, model.max() if model.size else 0)
         self.plot.setXRange(0, min(f[-1], fmax), padding=0.01)
         self.table.setRowCount(len(self.peaks))
+        fam = self.families()
         for i, p in enumerate(self.peaks):
             m = model[np.argmin(abs(model - p.frequency_hz))] if model.size else None
-            cells = [f"{p.frequency_hz:.3f}", f"{p.sigma_hz:.2g}", f"{100 * p.damping_ratio:.3g}",
+            sig, stored = self.sigma_of(p.frequency_hz, p.sigma_hz)
+            label = next((v for k, v in fam.items() if abs(k - p.frequency_hz) <= 1e-6 * p.frequency_hz), "—")
+            cells = [f"{p.frequency_hz:.3f}", f"{sig:.3g}" + ("" if stored else " (fit, unsaved)"),
+                     f"{100 * p.damping_ratio:.3g}",
                      f"{p.confidence:.2f}" + (" M" if p.manual else ""),
-                     "—" if m is None else f"{m:.3f}"]
+                     "—" if m is None else f"{m:.3f}", label]
             for j, c in enumerate(cells):
                 item = QTableWidgetItem(c)
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)

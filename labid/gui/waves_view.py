@@ -106,10 +106,20 @@ class WavesView(QWidget):
     # -- drawing -------------------------------------------------------------------------------
     def _draw_scalogram(self) -> None:
         i = self.shot_combo.currentIndex()
+        note = getattr(self, "_scalo_note", None)
+        if note is None:            # one note item, shown while there is no record
+            note = self._scalo_note = pg.TextItem("no data yet: no wave shot in this run", color="#777777",
+                                                  anchor=(0.5, 0.5))
+            self.scalogram.addItem(note)
         if i < 0 or i >= len(self._records):
             self.image.clear()
             self.ridge.setData([], [])
+            self.scalogram.setXRange(0, 1, padding=0)
+            self.scalogram.setYRange(0, 1, padding=0)
+            note.setPos(0.5, 0.5)
+            note.setVisible(True)
             return
+        note.setVisible(False)
         rec, name = self._records[i]
         fs = rec.timing.rate_hz
         arr = (self._res or {}).get("arrivals") or {}

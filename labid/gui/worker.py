@@ -49,6 +49,8 @@ class Job(QObject):
     def __init__(self, name: str, fn: Callable[[Callable[[Any], None], Callable[[], bool]], Any]):
         super().__init__()
         self.name, self.fn = name, fn
+        #: True once ``ended`` has been emitted (GUI thread)
+        self.has_ended = False
         self._stop = threading.Event()
         self._done = threading.Event()
         self._events: queue.SimpleQueue = queue.SimpleQueue()
@@ -89,6 +91,7 @@ class Job(QObject):
                 self.failed.emit(obj)
             else:
                 self._timer.stop()
+                self.has_ended = True
                 self.ended.emit()
                 return
 
@@ -115,7 +118,12 @@ class Job(QObject):
         return self._done.wait(ms / 1000.0)
 
     def release(self) -> None:
-        """Drop the function and the connections once finished (no cycles left)."""
+        """Drop the function and the connections once finished (no cycles left). Idempotent;
+        call it after ``ended``'s emission, not from one of its slots (Qt skips the slots
+        still to come when a slot disconnects them: a listener connected later would miss it)."""
+        if getattr(self, "_released", False):
+            return
+        self._released = True
         self._timer.stop()
         self.fn = None
         with warnings.catch_warnings():
