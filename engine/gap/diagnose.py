@@ -59,7 +59,7 @@ class GapOptions:
     prior_rel_std: float = 0.3
     model_rel_sigma: tuple[float, float] = (1.5e-4, 2e-4)   # (modal, waves) relative
     detect_sigma: float = 3.0
-    top_k: int = 4
+    top_k: int = 3
     confusable_dchi2: float = 4.0
     candidates: tuple[str, ...] = tuple(EFFECTS)
     max_nfev: int = 30

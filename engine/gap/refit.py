@@ -29,6 +29,8 @@ __all__ = ["Refit", "RefitError", "refit", "THETA_BOX"]
 
 #: the constants move at most by this factor's log from the start estimate during a refit
 THETA_BOX = math.log(3.0)
+#: whitened residual returned where the constants are inadmissible (trust region backs off)
+INADMISSIBLE = 1e3
 
 
 class RefitError(GapError):
@@ -72,13 +74,28 @@ def refit(name: str, magnitude_linear: float, F: GapFit, theta0: np.ndarray, w: 
     if a0 == spec.lo == 0.0 and spec.hi > 0:
         a0 = 0.1 * spec.typical      # start inside the range (a bound is a stationary point for 2nd-order effects)
 
+    memo: dict = {}
+    started = False
+
+    def feat(x):                      # whitened feature residual, memoised (jac reuses resid's)
+        key = x.tobytes()
+        if key not in memo:
+            memo.clear()
+            try:
+                memo[key] = F.residual(_unpack(np.exp(x[:k]), names), {name: float(x[k])})
+            except ValueError:        # inadmissible constants (PhysicsError): a wall the trust region backs off
+                if not started:
+                    raise
+                memo[key] = np.full(len(F.y), INADMISSIBLE)
+        return memo[key]
+
     def resid(x):
-        r = F.residual(_unpack(np.exp(x[:k]), names), {name: float(x[k])})
+        r = feat(x)
         return np.concatenate([r, w * (x[:k] - theta_prior)]) if has_prior else r
 
     def jac(x):
         p, a = _unpack(np.exp(x[:k]), names), float(x[k])
-        r = F.residual(p, {name: a})
+        r = feat(x)
         step = h if a + h <= spec.hi else -h
         col = (F.residual(p, {name: a + step}) - r) / step
         J = np.column_stack([F.jacobian(p, {name: a}), col])
@@ -87,12 +104,17 @@ def refit(name: str, magnitude_linear: float, F: GapFit, theta0: np.ndarray, w: 
         return J
 
     x0 = np.concatenate([theta0, [a0]])
+    try:
+        feat(x0)
+    except ValueError as exc:
+        raise RefitError(f"refit failed: {exc}") from None
+    started = True
     lo = np.concatenate([theta0 - THETA_BOX, [spec.lo]])
     hi = np.concatenate([theta0 + THETA_BOX, [spec.hi]])
     try:
         res = least_squares(resid, x0, jac=jac, bounds=(lo, hi), method="trf",
                             x_scale=np.concatenate([np.full(k, 0.05), [spec.typical]]),
-                            max_nfev=max_nfev, ftol=1e-4, xtol=1e-6, gtol=1e-6)
+                            max_nfev=max_nfev, ftol=1e-3, xtol=1e-5, gtol=1e-6)
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise RefitError(f"refit failed: {exc}") from None
     x = res.x
