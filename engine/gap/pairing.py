@@ -9,7 +9,7 @@ then shift every later pair and leave a gap no effect explains.
 peak may stay unpaired at the cost of a 15 % distance. If that differs from
 the current pairing, the constants are refitted with it
 (``scipy.optimize.least_squares``, unpaired peaks left out, waves kept) and
-the findings are phrased for ``where``:
+the peaks re-paired, up to 4 rounds or until a pairing repeats; the findings are phrased for ``where``:
 
 * "peak k (f Hz) is probably mode m (f' Hz)";
 * "predicted mode m near f Hz has no measured peak[, which the response
@@ -38,6 +38,8 @@ BARELY_SEEN = 0.15
 #: relative frequency distance beyond which a peak is better left unpaired
 UNPAIRED_REL = 0.15
 EXTRA_MODES = 6
+#: re-pair / refit rounds at most
+MAX_ROUNDS = 4
 
 
 @dataclass(frozen=True)
@@ -87,6 +89,25 @@ def _visibility(model, modes, points, length, width) -> np.ndarray:
     return np.max(S, axis=1) / np.where(top > 0, top, 1.0)
 
 
+def _fit(F, inner, names, th0, paired, sel, y, sig, n, nw):
+    def resid(th):
+        p = {nm: float(v) for nm, v in zip(names, np.exp(th))}
+        rm = (inner.predict(p)[sel] - y[paired]) / sig[paired]
+        return np.concatenate([rm, F.residual(p, {})[n:]]) if nw else rm
+
+    def jac(th):
+        p = {nm: float(v) for nm, v in zip(names, np.exp(th))}
+        _, J = inner.jacobian(p, list(names))
+        Jm = J[sel] * np.exp(th)[None, :] / sig[paired][:, None]
+        return np.vstack([Jm, F.jacobian(p, {})[n:]]) if nw else Jm
+
+    try:
+        return least_squares(resid, th0, jac=jac, method="trf", x_scale=0.05, max_nfev=30, ftol=1e-4,
+                             bounds=(th0 - 1.1, th0 + 1.1))
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+
+
 def pairing_check(F: GapFit, p_hat: dict, r0: np.ndarray, alpha: float, dof: float) -> PairingCheck | None:
     """Re-pair the peaks at ``p_hat`` and refit (see module docstring); None if the pairing stands."""
     fw, prob = F.fw, F.fw.features
@@ -102,25 +123,24 @@ def pairing_check(F: GapFit, p_hat: dict, r0: np.ndarray, alpha: float, dof: flo
         return None
     names = F.names
     k = len(names)
-    paired = np.array([j is not None for j in prop])
-    sel = np.array([j for j in prop if j is not None], int)
     nw = len(F.y) - n
-
-    def resid(th):
-        p = {nm: float(v) for nm, v in zip(names, np.exp(th))}
-        rm = (inner.predict(p)[sel] - y[paired]) / sig[paired]
-        return np.concatenate([rm, F.residual(p, {})[n:]]) if nw else rm
-
-    def jac(th):
-        p = {nm: float(v) for nm, v in zip(names, np.exp(th))}
-        _, J = inner.jacobian(p, list(names))
-        Jm = J[sel] * np.exp(th)[None, :] / sig[paired][:, None]
-        return np.vstack([Jm, F.jacobian(p, {})[n:]]) if nw else Jm
-
-    th0 = np.log([p_hat[nm] for nm in names])
-    try:
-        res = least_squares(resid, th0, jac=jac, method="trf", x_scale=0.05, max_nfev=30, ftol=1e-4)
-    except (ValueError, np.linalg.LinAlgError):
+    th = np.log([p_hat[nm] for nm in names])
+    seen: list = [current]
+    res = None
+    for _ in range(MAX_ROUNDS):     # re-pair, refit, until the pairing stands (or repeats)
+        paired = np.array([j is not None for j in prop])
+        sel = np.array([j for j in prop if j is not None], int)
+        res = _fit(F, inner, names, th, paired, sel, y, sig, n, nw)
+        if res is None:
+            return None
+        th = res.x
+        seen.append(prop)
+        p_new = {nm: float(v) for nm, v in zip(names, np.exp(th))}
+        nxt = propose_pairing(y, inner.predict(p_new))
+        if nxt in seen:
+            break
+        prop = nxt
+    if prop == current:
         return None
     r = res.fun
     chi2 = float(r @ r)
@@ -146,7 +166,7 @@ def pairing_check(F: GapFit, p_hat: dict, r0: np.ndarray, alpha: float, dof: flo
         if m not in sel:
             seen = (f", which the response point barely sees (relative amplitude {vis[m]:.2f})"
                     if vis[m] < BARELY_SEEN else "")
-            findings.append(f"predicted mode {m + 1} near {fp[m]:.1f} Hz has no measured peak{seen}")
+            findings.insert(0, f"predicted mode {m + 1} near {fp[m]:.1f} Hz has no measured peak{seen}")
     full = np.zeros(len(F.y))
     full[np.flatnonzero(paired)] = r[:int(paired.sum())]
     if nw:
