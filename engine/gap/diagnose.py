@@ -302,6 +302,15 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
     for j, c in enumerate(ranked[:opts.top_k]):
         try:
             rf = refit(c.name, c.magnitude_linear, F, base.theta, base.w, base.theta_prior, fl, opts.max_nfev)
+            dof = max(base.test["dof"] - 1, 1)
+            if stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha and np.any(base.theta_prior != base.theta):
+                # second start: identify's start values (its estimate may sit in a minimum the effect made)
+                try:
+                    rf2 = refit(c.name, c.magnitude_linear, F, base.theta_prior, base.w, base.theta_prior, fl,
+                                opts.max_nfev)
+                    rf = rf2 if rf2.chi2 < rf.chi2 else rf
+                except RefitError:
+                    pass
             done[c.name] = replace(c, refit=rf)
         except RefitError as exc:
             done[c.name] = replace(c, error=str(exc))
