@@ -56,7 +56,6 @@ class GapOptions:
 
     alpha: float = 0.01
     accept_alpha: float = 0.001
-    prior_rel_std: float = 0.3
     model_rel_sigma: tuple[float, float] = (1.5e-4, 2e-4)   # (modal, waves) relative
     detect_sigma: float = 3.0
     top_k: int = 3
@@ -303,8 +302,11 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
         try:
             rf = refit(c.name, c.magnitude_linear, F, base.theta, base.w, base.theta_prior, fl, opts.max_nfev)
             dof = max(base.test["dof"] - 1, 1)
-            if stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha and np.any(base.theta_prior != base.theta):
-                # second start: identify's start values (its estimate may sit in a minimum the effect made)
+            far = bool(np.any(np.abs(base.theta - base.theta_prior) > math.log(1.5)))
+            if (far or not rf.converged or stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha) \
+                    and np.any(base.theta_prior != base.theta):
+                # second start: identify's start values (its estimate may sit in a minimum the
+                # effect made: a constant > 1.5x from its start, or a refit not converged / rejected)
                 try:
                     rf2 = refit(c.name, c.magnitude_linear, F, base.theta_prior, base.w, base.theta_prior, fl,
                                 opts.max_nfev)
