@@ -60,6 +60,7 @@ class GapOptions:
     detect_sigma: float = 3.0
     top_k: int = 3
     confusable_dchi2: float = 4.0
+    skip_dchi2: float = 25.0         # a candidate whose linear chi^2 exceeds an accepted refit's by more is not refitted
     candidates: tuple[str, ...] = tuple(EFFECTS)
     max_nfev: int = 30
     discretisation: bool = True      # per-mode FE error from a second, finer mesh in the whitening
@@ -298,10 +299,13 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
     if not base.test["significant"]:
         ranked = []          # no gap: nothing to attribute (screening still reports undetectable effects)
     done: dict[str, Candidate] = {}
+    best_ok = math.inf      # chi^2 of the best accepted refit so far
+    dof = max(base.test["dof"] - 1, 1)
     for j, c in enumerate(ranked[:opts.top_k]):
+        if c.chi2_linear > best_ok + opts.skip_dchi2:
+            continue            # far behind an accepted refit even in the linear estimate: not refitted
         try:
             rf = refit(c.name, c.magnitude_linear, F, base.theta, base.w, base.theta_prior, fl, opts.max_nfev)
-            dof = max(base.test["dof"] - 1, 1)
             far = bool(np.any(np.abs(base.theta - base.theta_prior) > math.log(1.5)))
             if (far or not rf.converged or stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha) \
                     and np.any(base.theta_prior != base.theta):
@@ -314,6 +318,8 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
                 except RefitError:
                     pass
             done[c.name] = replace(c, refit=rf)
+            if stats.chi2.sf(rf.chi2, dof) > opts.accept_alpha:
+                best_ok = min(best_ok, rf.chi2)
         except RefitError as exc:
             done[c.name] = replace(c, error=str(exc))
         if progress:

@@ -49,31 +49,40 @@ class GapForward(ForwardModel):
         if pairing is not None and features.modal is not None:
             features = replace(features, modal=replace(features.modal, pairing=pairing))
         super().__init__(features, mesh=mesh, safe_order=safe_order, plate_model=plate_model)
-        self._plate_fw = lru_cache(maxsize=16)(self._build_plate_forward)
+        self.pairing = pairing
+        # few models at a time: a refit moves the effect every evaluation, and each plate
+        # model holds its matrices and factorisation (the parent caches 32: ~900 MiB)
+        self._plate_fw = lru_cache(maxsize=4)(self._build_plate_forward)
         self._misalign = 0.0
 
     # -- modal -------------------------------------------------------------
+    def modal_forward(self, mass: float = 0.0, spring: float = 0.0, thickness: float = 0.0):
+        """As ``ForwardModel.modal_forward``; with a fixed ``pairing`` built here (small cache)."""
+        if self.pairing is None:
+            return super().modal_forward(mass, spring, thickness)
+        return self._plate_fw((float(mass), float(spring), float(thickness)), (0.0,) * len(PLATE_EFFECTS))
+
     def modal_forward_with(self, effects: Mapping[str, float]):
         """The paired modal forward model with every modal effect of ``effects`` built in."""
         e = effects
         plate = tuple(float(e.get(k, 0.0)) for k in PLATE_EFFECTS)
         base = (float(e.get("sensor_mass", 0.0)), float(e.get("support_stiffness", 0.0)),
                 float(e.get("thickness", 0.0)))
-        if not any(plate):
-            return self.modal_forward(*base)
+        if not any(plate) and self.pairing is None:
+            return super().modal_forward(*base)
         return self._plate_fw(base, plate)
 
     def _build_plate_forward(self, base: tuple, plate: tuple):
         mass, spring, thickness = base
         mis, ply, g = plate
         p = self.features
-        lam = turned_laminate(p.laminate, mis, ply)
+        lam = turned_laminate(p.laminate, mis, ply) if (mis or ply) else p.laminate
         if thickness:
             lam = lam.scaled_thickness(1.0 + thickness)
         if g:
             mat = lam.materials[p.material] if p.material else next(iter(lam.materials.values()))
             lam = lam.with_params({"density": mat.density * (1.0 - g)}, mat.name)
-        model = self.base.with_laminate(lam)
+        model = self.base.with_laminate(lam) if lam is not p.laminate else self.base
         pts = []
         if g:
             nx, ny = MASS_GRID
@@ -99,7 +108,7 @@ class GapForward(ForwardModel):
                             shapes=md.shapes, material=p.material)
 
     def predict_modal(self, params: Mapping[str, float], effects: Mapping[str, float]) -> np.ndarray:
-        if not any(effects.get(k, 0.0) for k in PLATE_EFFECTS):
+        if self.pairing is None and not any(effects.get(k, 0.0) for k in PLATE_EFFECTS):
             return super().predict_modal(params, effects)
         stripped = {k: v for k, v in effects.items() if k not in PLATE_EFFECTS}
         par = temperature_params(params, stripped.get("temperature", 0.0))

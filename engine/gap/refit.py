@@ -7,8 +7,8 @@ estimate had a prior. Trust-region reflective (``trf``) from the start
 estimate and the linear estimate of the effect, the constants kept within a
 factor 3 of the start (``THETA_BOX``); Jacobian: the constants'
 columns from :meth:`GapFit.jacobian` at every iterate (analytic modal
-sensitivities), the effect's column by a forward difference of 0.1 x its
-typical magnitude (towards the inside of the range). ``converged`` is
+sensitivities; the wave rows, finite differences of SAFE, frozen at the
+start), the effect's column by a forward difference of 0.1 x its typical magnitude (towards the inside of the range). ``converged`` is
 scipy's own termination status (>0: ftol/xtol/gtol met; 0: evaluation budget
 spent). Covariance from the final Gauss-Newton matrix.
 """
@@ -98,7 +98,10 @@ def refit(name: str, magnitude_linear: float, F: GapFit, theta0: np.ndarray, w: 
         r = feat(x)
         step = h if a + h <= spec.hi else -h
         col = (F.residual(p, {name: a + step}) - r) / step
-        J = np.column_stack([F.jacobian(p, {name: a}), col])
+        Jc = F.jacobian(p, {name: a}, waves=False)
+        if Jw0 is not None:
+            Jc = np.vstack([Jc, Jw0])
+        J = np.column_stack([Jc, col])
         if has_prior:
             J = np.vstack([J, np.column_stack([np.diag(w), np.zeros(k)])])
         return J
@@ -109,6 +112,9 @@ def refit(name: str, magnitude_linear: float, F: GapFit, theta0: np.ndarray, w: 
     except ValueError as exc:
         raise RefitError(f"refit failed: {exc}") from None
     started = True
+    nm = F.fw.n_modal
+    # the wave rows of the constants' Jacobian (finite differences of SAFE) frozen at the start
+    Jw0 = F.jacobian(_unpack(np.exp(theta0), names), {name: a0})[nm:] if len(F.y) > nm else None
     lo = np.concatenate([theta0 - THETA_BOX, [spec.lo]])
     hi = np.concatenate([theta0 + THETA_BOX, [spec.hi]])
     try:

@@ -55,8 +55,9 @@ class GapFit:
         return r
 
     def jacobian(self, params: Mapping[str, float], effects: Mapping[str, float],
-                 fd_step: float = 1e-5) -> np.ndarray:
-        """Whitened d residual / d log p: analytic modal rows, forward differences for waves."""
+                 fd_step: float = 1e-5, waves: bool = True) -> np.ndarray:
+        """Whitened d residual / d log p: analytic modal rows, forward differences for waves
+        (``waves=False``: the modal rows only)."""
         fw, nm, names = self.fw, self.fw.n_modal, self.names
         parts = []
         if nm:
@@ -72,7 +73,7 @@ class GapFit:
                 fo = F_REF * (f0 / F_REF) ** g
                 Jm = Jm * (g * fo / f0)[:, None]
             parts.append(Jm / self.sigma[:nm, None])
-        if len(self.y) > nm:
+        if len(self.y) > nm and waves:
             base = np.concatenate(fw.predict_waves(params, effects))
             cols = []
             for n_ in names:
@@ -81,7 +82,7 @@ class GapFit:
                 cols.append((np.concatenate(fw.predict_waves(p2, effects)) - base) / fd_step)
             Jw = np.column_stack(cols) / self.sigma[nm:, None]
             parts.append(np.where(np.isfinite(Jw), Jw, 0.0))
-        return np.vstack(parts)
+        return np.vstack(parts) if parts else np.zeros((0, len(names)))
 
     def blocks(self, raw: bool = False) -> list[DataBlock]:
         """Modal and wave blocks of the nominal model (no effect), whitened sigmas
