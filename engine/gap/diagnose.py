@@ -3,11 +3,14 @@
 Procedure (:func:`diagnose`), on features whitened by their sigmas (plus a small
 model-discretisation allowance, ``GapOptions.model_rel_sigma``):
 
-1. Best fit of the constants (``engine.fit.estimate``, log-parameters,
-   Gaussian prior ``prior_rel_std`` about the nominal values); chi^2 of the
+1. The constants are those ``labid identify`` estimated (a :class:`StartEstimate`:
+   same parameters, prior, pairing; engine-only callers get
+   :func:`~engine.gap.start.own_estimate`, the same estimator); chi^2 of the
    whitened residuals against the chi^2 law on the degrees of freedom left
    (n minus the trace of the hat matrix, :func:`gap_test`): a gap is declared
    when the p-value is below ``alpha`` (the false-alarm rate on clean data).
+   With a gap and modes paired by order, :mod:`engine.gap.pairing` checks
+   whether re-pairing explains it (verdict ``pairing``).
 2. Where: chi^2 split by modality, mode, mode family (from the predicted mode
    shapes), frequency band, wave mode and direction (:mod:`engine.gap.where`).
 3. Which: every candidate effect is screened (:mod:`engine.gap.candidates`:
@@ -16,7 +19,8 @@ model-discretisation allowance, ``GapOptions.model_rel_sigma``):
    (:mod:`engine.gap.refit`), ranked by chi^2 (equal parameter count, so by
    BIC too), and checked on held-out data (two interleaved folds of modes and
    of wave bands, linearised about the fit).
-4. Verdict: ``none`` without a significant gap; the best effect when it
+4. Verdict: ``none`` without a significant gap; ``pairing`` when re-pairing the
+   peaks passes the test and beats every effect; the best effect when it
    passes the chi^2 test (p > ``accept_alpha``), beats "no effect" by BIC and
    shrinks the held-out gap; otherwise ``unattributed``. Effects whose chi^2
    is within ``confusable_dchi2`` of the best form the confusable set.
