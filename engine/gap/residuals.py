@@ -77,9 +77,16 @@ class GapFit:
             base = np.concatenate(fw.predict_waves(params, effects))
             cols = []
             for n_ in names:
-                p2 = dict(params)
-                p2[n_] = params[n_] * math.exp(fd_step)
-                cols.append((np.concatenate(fw.predict_waves(p2, effects)) - base) / fd_step)
+                col = np.zeros_like(base)
+                for h in (fd_step, -fd_step):      # backward where the forward step leaves the admissible region
+                    p2 = dict(params)
+                    p2[n_] = params[n_] * math.exp(h)
+                    try:
+                        col = (np.concatenate(fw.predict_waves(p2, effects)) - base) / h
+                        break
+                    except ValueError:
+                        continue
+                cols.append(col)
             Jw = np.column_stack(cols) / self.sigma[nm:, None]
             parts.append(np.where(np.isfinite(Jw), Jw, 0.0))
         return np.vstack(parts) if parts else np.zeros((0, len(names)))
