@@ -118,11 +118,19 @@ def start_estimate(doc: Mapping, base_dir: str | Path = ".", src: str = "<featur
     est = estimation.run(problem, names, start, method="lm", prior=prior)
     st = estimation.start_values(problem, est.names, start)
     md = problem.features.modal if problem.features is not None else None
+    pairing = "mac" if md is not None and md.shapes is not None else "order"
+    # identify's own peak -> mode assignment, when it reports one (issue 12: JSON ``pairing``)
+    report = est.to_dict().get("pairing")
+    mode_index = None
+    if pairing == "order" and isinstance(report, list) and report and all(
+            isinstance(r, Mapping) and "mode_index" in r for r in report):
+        mode_index = tuple(None if r["mode_index"] is None else int(r["mode_index"]) for r in report)
+        pairing = "identify"
     return StartEstimate(names=tuple(est.names), params=est.params,
                          std={n: float(s_) for n, s_ in zip(est.names, est.std)},
                          converged=bool(est.converged), message=est.message, iterations=int(est.iterations),
                          prior_rel_std=prior, prior_mean=st,
-                         pairing="mac" if md is not None and md.shapes is not None else "order",
+                         pairing=pairing, mode_index=mode_index,
                          source="labid identify (labid.estimation.run, method lm)",
                          warnings=tuple(est.warnings))
 

@@ -67,3 +67,25 @@ def test_a_missing_peak_is_diagnosed_as_pairing_with_the_mode_named():
     assert res["gap"]["after"] < 1.5
     assert abs(res["pairing"]["constants_after"]["E1"] / case.truth_constants["E1"] - 1) < 0.05
     assert f[2] not in doc["modal"]["frequencies_hz"]
+
+
+def test_identify_s_own_assignment_is_used_and_unexplained_peaks_carry_no_residual():
+    """A selection (predicted mode per peak, None = unexplained) as identify reports it:
+    the paired peaks are predicted by those modes, the unexplained one has no residual."""
+    from engine.gap import GapFit, GapForward
+    from labid.diagnosis import problem_from_features
+    case = draw_case(23, "clean", wave_sets=())
+    doc = _without_shapes(case.features, drop=(2,))
+    problem = problem_from_features(doc)
+    sel = [0, 1, 3, 4, 5, 6, 7, 8, None]          # mode 3 has no peak; the last peak is unexplained
+    fw = GapForward(problem, selection=sel)
+    F = GapFit(problem, fw, (0.0, 0.0), names=NAMES)
+    p = {**problem.nominal(), **case.truth_constants}
+    pred = fw.predict(p, {})
+    ref = GapForward(problem.__class__(problem.laminate, problem.length, problem.width, problem.rig,
+                                       problem.modal.__class__(np.ones(10), np.ones(10), pairing="order")),
+                     pairing="order").predict(p, {})
+    assert np.allclose(pred[:8], ref[[0, 1, 3, 4, 5, 6, 7, 8]], rtol=1e-12)
+    r = F.residual(p, {})
+    assert r[8] == 0.0 and np.all(F.jacobian(p, {})[8] == 0.0)
+    assert np.max(np.abs(r[:8])) < 5.0          # the truth with the right assignment: noise-level residuals

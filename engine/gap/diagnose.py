@@ -389,7 +389,8 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     opts = options or GapOptions()
     _check(problem, opts)
     pairing = start.pairing if start is not None else identify_pairing(problem.modal)
-    fw = forward or GapForward(problem, pairing=pairing)
+    selection = start.mode_index if start is not None else None
+    fw = forward or GapForward(problem, pairing=None if selection is not None else pairing, selection=selection)
     names = start.names if start is not None else None
     F0 = GapFit(problem, fw, opts.model_rel_sigma, names=names)
     if start is None:
@@ -413,7 +414,7 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     ho0 = held_out(r0, base.J, base.w, base.dtheta, fl)
 
     pair = None
-    if test["significant"] and fw.n_modal and pairing == "order":
+    if test["significant"] and fw.n_modal and pairing == "order" and selection is None:
         pair = pairing_check(F, base.p_hat, r0, opts.alpha, test["dof"])
     cands = _screen_and_refit(problem, F, base, fl, opts, progress)
     refitted = sorted([c for c in cands if c.refit is not None], key=lambda c: c.refit.chi2)

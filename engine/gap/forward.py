@@ -13,7 +13,10 @@ and adds the effects of ``engine.forward.effects.PLATE_EFFECTS``:
 
 ``pairing`` fixes how measured modes are paired: ``"order"`` / ``"mac"`` as
 ``labid identify`` does (``engine.forward.ModalForward``), or None for the
-``ForwardModel`` default. Units SI, angles in degrees.
+``ForwardModel`` default. ``selection`` (one predicted elastic-mode index per
+peak, None for a peak identify left unexplained) fixes identify's own
+assignment: those modes are predicted by order and picked; :attr:`unexplained`
+masks the peaks without a partner (``GapFit`` gives them no residual). Units SI, angles in degrees.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ from typing import Mapping
 import numpy as np
 
 from ..features import Features, WaveData
-from ..forward import ForwardModel, ModalForward
+from ..forward import ForwardModel, ModalForward, SelectedModes
 from ..forward.effects import F_REF, PLATE_EFFECTS, EffectError, temperature_params
 from ..laminate import Laminate, Ply
 
@@ -45,7 +48,13 @@ class GapForward(ForwardModel):
     """``ForwardModel`` with the real-plate effects and a fixed pairing (see module docstring)."""
 
     def __init__(self, features: Features, mesh=None, safe_order: int | None = None, plate_model=None,
-                 pairing: str | None = None):
+                 pairing: str | None = None, selection=None):
+        self.unexplained = None
+        self._selection = None
+        if selection is not None and features.modal is not None:
+            pairing = "order"
+            self._selection = np.array([0 if j is None else int(j) for j in selection], int)
+            self.unexplained = np.array([j is None for j in selection], bool)
         if pairing is not None and features.modal is not None:
             features = replace(features, modal=replace(features.modal, pairing=pairing))
         super().__init__(features, mesh=mesh, safe_order=safe_order, plate_model=plate_model)
@@ -104,6 +113,9 @@ class GapForward(ForwardModel):
                 raise EffectError("support_stiffness needs rig.supports")
             model = model.with_springs([(x, y, spring) for x, y in p.rig.supports])
         md = p.modal
+        if self._selection is not None:
+            inner = ModalForward(model, int(self._selection.max()) + 1, material=p.material)
+            return SelectedModes(inner, self._selection)
         return ModalForward(model, self.n_modal, points=md.points if md.shapes is not None else None,
                             shapes=md.shapes, material=p.material)
 

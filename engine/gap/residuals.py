@@ -47,9 +47,13 @@ class GapFit:
         self.names = tuple(names) if names else problem.param_names()
         mat = problem.material_obj.params()
         self.nominal = {n: mat[n] for n in self.names}
+        #: peaks identify left unexplained (no residual, no Jacobian row), or None
+        self.unexplained = getattr(fw, "unexplained", None)
 
     def residual(self, params, effects) -> np.ndarray:
         r = (self.fw.predict(params, effects) - self.y) / self.sigma
+        if self.unexplained is not None:
+            r[:len(self.unexplained)][self.unexplained] = 0.0
         if not np.all(np.isfinite(r)):
             raise GapError("model undefined (a wave mode absent) for these constants/effects")
         return r
@@ -72,7 +76,10 @@ class GapFit:
                 g = 1.0 / (1.0 - eta / np.pi)
                 fo = F_REF * (f0 / F_REF) ** g
                 Jm = Jm * (g * fo / f0)[:, None]
-            parts.append(Jm / self.sigma[:nm, None])
+            Jm = Jm / self.sigma[:nm, None]
+            if self.unexplained is not None:
+                Jm[self.unexplained] = 0.0
+            parts.append(Jm)
         if len(self.y) > nm and waves:
             base = np.concatenate(fw.predict_waves(params, effects))
             cols = []

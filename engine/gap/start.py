@@ -29,7 +29,9 @@ class StartEstimate:
     ``names``/``params``: identified constants (SI); ``std``: their stds;
     ``prior_rel_std``: std of log p about ``prior_mean`` (None: maximum
     likelihood, identify's default); ``pairing``: ``"order"`` or ``"mac"``
-    (how identify paired the measured modes); ``source``: who produced it.
+    (how identify paired the measured modes) or ``"identify"`` with
+    ``mode_index`` (identify's own assignment: a predicted elastic-mode index
+    per peak, None for an unexplained peak); ``source``: who produced it.
     """
 
     names: tuple[str, ...]
@@ -43,6 +45,7 @@ class StartEstimate:
     pairing: str = "order"
     source: str = "engine.fit.estimate"
     warnings: tuple[str, ...] = ()
+    mode_index: tuple | None = None
 
 
 def identify_pairing(modal) -> str:
