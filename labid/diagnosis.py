@@ -142,7 +142,7 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
     ``notes``) of parsed features, from identify's estimate (:func:`start_estimate`).
     Progress (the estimate, candidates screened and refitted) on stderr via ``labid.progress``."""
     problem, notes = problem_and_notes(doc, base_dir, src)
-    progress.note("labid diagnose: identifying the constants (as labid identify)")
+    progress.note("diagnosis: identifying the constants (as labid identify)")
     st = start_estimate(doc, base_dir, src, names, start, prior)
     bar = progress.bar(None, "candidate effects", unit="step")
 
