@@ -14,7 +14,7 @@ from scipy import stats
 
 from engine.gap import GapFit, GapForward, GapOptions, diagnose, gap_test, own_estimate
 from engine.gap.start import identify_pairing
-from engine.forward import ALPHA_FIBRE, ALPHA_MATRIX, EFFECTS, ForwardModel
+from engine.forward import ALPHA_FIBRE, ALPHA_MATRIX, EFFECTS
 from labid.cli import main
 from labid.diagnosis import problem_from_features
 from bench.blind import draw_case

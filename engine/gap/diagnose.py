@@ -64,7 +64,7 @@ class GapOptions:
     detect_sigma: float = 3.0
     top_k: int = 3
     confusable_dchi2: float = 4.0
-    skip_dchi2: float = 25.0         # a candidate whose linear chi^2 exceeds an accepted refit's by more is not refitted
+    skip_dchi2: float = 25.0         # linear chi^2 this far above an accepted refit's: not refitted
     candidates: tuple[str, ...] = tuple(EFFECTS)
     max_nfev: int = 30
     discretisation: bool = True      # per-mode FE error from a second, finer mesh in the whitening

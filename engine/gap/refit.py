@@ -8,9 +8,9 @@ estimate and the linear estimate of the effect, the constants kept within a
 factor 3 of the start (``THETA_BOX``); Jacobian: the constants'
 columns from :meth:`GapFit.jacobian` at every iterate (analytic modal
 sensitivities; the wave rows, finite differences of SAFE, frozen at the
-start), the effect's column by a forward difference of 0.1 x its typical magnitude (towards the inside of the range). ``converged`` is
-scipy's own termination status (>0: ftol/xtol/gtol met; 0: evaluation budget
-spent). Covariance from the final Gauss-Newton matrix.
+start), the effect's column by a forward difference of 0.1 x its typical
+magnitude (towards the inside of the range). ``converged`` is scipy's own
+termination status (>0: ftol/xtol/gtol met; 0: evaluation budget spent). Covariance from the final Gauss-Newton matrix.
 """
 from __future__ import annotations
 
