@@ -89,3 +89,15 @@ def test_identify_s_own_assignment_is_used_and_unexplained_peaks_carry_no_residu
     r = F.residual(p, {})
     assert r[8] == 0.0 and np.all(F.jacobian(p, {})[8] == 0.0)
     assert np.max(np.abs(r[:8])) < 5.0          # the truth with the right assignment: noise-level residuals
+
+
+def test_cli_params_and_prior_are_checked_as_identify_checks_them(tmp_path, capsys):
+    import json
+    from labid.cli import main
+    f = tmp_path / "f.json"
+    f.write_text(json.dumps(_without_shapes(draw_case(24, "clean", wave_sets=()).features)))
+    assert main(["diagnose", str(f), "--params", "E1,X", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--params" in err[0] and "'X'" in err[0]
+    assert main(["diagnose", str(f), "--prior", "-1", "--quiet"]) == 2
+    assert "--prior" in capsys.readouterr().err
