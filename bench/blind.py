@@ -10,11 +10,16 @@ different discretisation than the diagnoser's (finer plate mesh, higher SAFE
 order), so a diagnoser tuned to its own simulator shows it. A benchmark case
 generator (bench/bench_gap.py, tests/test_gap.py), not part of the rig.
 
-Out-of-library conditions:
-  ply_angle   the whole layup turned by +-2..5 deg in the plate plane;
+Library effects include the real-plate ones (``misalignment``, ``ply_angle_error``,
+``density_gradient``), injected by ``engine.gap.GapForward`` (the diagnoser's
+model of them; with ``outside=True`` on the finer mesh).
+
+Out-of-library conditions (still outside the enlarged library):
   soft_patch  a local stiffness loss of 30..60 % over a 60 mm x 60 mm square
               (the plate elements there lose that fraction of their stiffness;
-              the wave path is assumed to avoid it).
+              the wave path is assumed to avoid it);
+  lump_mass   a 3..10 g point mass (glue, label, bolt) at a random point at
+              least 60 mm from every accelerometer.
 
 Noise: modal sigma = 3e-4 f, mode shapes 2 % of the largest value, group
 velocities sigma = 0.2 % of c_g; Gaussian.
@@ -29,15 +34,16 @@ from importlib import resources
 import numpy as np
 
 from engine.features import Features, ModalData, RigLayout, WaveData
-from engine.forward import EFFECTS, ForwardModel
-from engine.laminate import Laminate, Ply
+from engine.forward import EFFECTS
+from engine.gap import GapForward
+from engine.laminate import Laminate
 from engine.plate import Mesh, PlateModel
 from engine.safe import default_discretisation
 from labid.features import features_document
 from labid.specimen import specimen_from_dict
 
 LIBRARY = tuple(EFFECTS)
-OUT_OF_LIBRARY = ("ply_angle", "soft_patch")
+OUT_OF_LIBRARY = ("soft_patch", "lump_mass")
 KINDS = ("clean",) + LIBRARY + OUT_OF_LIBRARY
 
 #: physically typical magnitudes: (low, high, signed) in the effect's unit
@@ -50,8 +56,11 @@ RANGES = {
     "path_length": (0.003, 0.010, True),         # m, source/sensor placement
     "sensor_aperture": (0.015, 0.028, False),    # m, true length (nominal 5 mm): MFC M2814 active 28 mm
     "viscoelastic": (0.005, 0.03, False),        # loss factor of epoxy composites
-    "ply_angle": (2.0, 5.0, True),               # deg, whole layup
+    "misalignment": (2.0, 5.0, False),           # deg, whole layup (grain/fibre angle offset)
+    "ply_angle_error": (3.0, 8.0, True),         # deg, the top ply
+    "density_gradient": (0.08, 0.15, False),     # relative density change at each end (wood, resin flow)
     "soft_patch": (0.3, 0.6, False),             # fraction of stiffness lost locally
+    "lump_mass": (0.003, 0.010, False),          # kg, glue/label/bolt at a random point off the sensors
 }
 
 ACCELEROMETERS = ((0.02, 0.02), (0.31, 0.02), (0.02, 0.31), (0.31, 0.31))
@@ -124,27 +133,30 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
     waves = tuple(WaveData(m, d, np.geomspace(*F_WAVES, n), np.ones(n), np.ones(n))
                   for m, d, n in wave_sets)
     true_lam = lam
-    if kind == "ply_angle":
-        true_lam = Laminate(tuple(Ply(p.material, p.angle_deg + mag, p.thickness) for p in lam.plies))
     problem = Features(true_lam, length, width, rig,
                        ModalData(np.ones(N_MODES), np.ones(N_MODES), pairing="order"), waves)
     if outside:
         mesh = Mesh.default(length, width, lam.thickness, n=9)
     plate_model = None
-    if kind == "soft_patch" or outside:
+    if kind in OUT_OF_LIBRARY or outside:
         plate_model = PlateModel.build(true_lam, length, width, mesh)
         if kind == "soft_patch":
             x0, y0 = rng.uniform(0.08, 0.25, size=2)
             plate_model = plate_model.with_stiffness_loss(x0, y0, 0.06, mag, truth)
+        if kind == "lump_mass":
+            while True:
+                x0, y0 = rng.uniform(0.02, 0.31, size=2)
+                if min(np.hypot(x0 - ax, y0 - ay) for ax, ay in ACCELEROMETERS) > 0.06:
+                    break
+            plate_model = plate_model.with_point_masses([(x0, y0, mag)])
     safe_order = None
     if outside:
         safe_order = default_discretisation(lam, F_WAVES[1] * 1.5)[0] + 2
-    fw = ForwardModel(problem, mesh=mesh, safe_order=safe_order, plate_model=plate_model)
+    fw = GapForward(problem, mesh=mesh, safe_order=safe_order, plate_model=plate_model)
     effects = {kind: mag} if kind in LIBRARY else {}
     y = fw.predict(truth, effects)
     # mode shapes of the true (perturbed) plate at the measurement points
-    mf = fw.modal_forward(effects.get("sensor_mass", 0.0), effects.get("support_stiffness", 0.0),
-                          effects.get("thickness", 0.0))
+    mf = fw.modal_forward_with(effects)
     modes, idx, _ = mf.solve(truth)
     pts = _shape_points()
     shapes = mf.model.shapes_at(modes, pts)[idx]
@@ -158,5 +170,5 @@ def draw_case(seed: int, kind: str | None = None, outside: bool = False, *,
                         tuple(WaveData(w.mode, w.direction_deg, w.frequency_hz, obs[a:b], sig[a:b])
                               for w, a, b in zip(waves, ends[:-1], ends[1:])))
     feats = features_document(measured, copy.deepcopy(table))
-    unit = EFFECTS[kind].unit if kind in EFFECTS else ("deg" if kind == "ply_angle" else "1")
+    unit = EFFECTS[kind].unit if kind in EFFECTS else ("kg" if kind == "lump_mass" else "1")
     return BlindCase(int(seed), kind, mag, unit, feats, truth, bool(outside), y)

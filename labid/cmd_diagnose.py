@@ -7,6 +7,11 @@ magnitude, unit, gap_after, score, ...}``), ``verdict`` (an effect name,
 ``"none"`` or ``"unattributed"``), plus ``confusable``, ``undetectable``
 (effects the constants absorb, with the bias they put into them), ``constants``
 (before/after) and per-feature residuals. ``--plot PNG`` draws where the gap lies.
+
+The diagnosis starts from the estimate ``labid identify`` reports with the same
+``--params``, ``--start`` and ``--prior``. The console shows the verdict, the gap
+before -> after, the top three candidates with magnitudes and units, the
+pairing findings, and where each output file went; progress goes to stderr.
 """
 from __future__ import annotations
 
@@ -18,6 +23,7 @@ from . import services
 from .cmdutil import add_json_option
 from .diagnosis import load_features, plot_gap, run_diagnosis
 from .errors import UserError
+from .estimation import parse_assignments
 
 
 def register(sub) -> None:
@@ -28,6 +34,11 @@ def register(sub) -> None:
     p.add_argument("--alpha", type=float, default=0.01,
                    help="false-alarm rate of the chi^2 gap test (default 0.01)")
     p.add_argument("--csv", metavar="DIR", help="also write the diagnosis tables as DIR/diagnosis_*.csv")
+    p.add_argument("--params", metavar="P1,P2,..",
+                   help="constants identified before the diagnosis (as labid identify --params)")
+    p.add_argument("--start", metavar="P=V,..", help="initial values in SI units (as labid identify --start)")
+    p.add_argument("--prior", type=float, default=None, metavar="S",
+                   help="prior std of log(p) about the start (as labid identify --prior; default none)")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -35,23 +46,50 @@ def register(sub) -> None:
 def run(args) -> dict:
     if not 0.0 < args.alpha < 0.5:
         raise UserError(f"value {args.alpha!r}: expected a false-alarm rate in (0, 0.5)", key="--alpha")
+    names = None
+    if args.params:
+        names = tuple(n.strip() for n in args.params.split(",") if n.strip())
+        if not names:
+            raise UserError(f"value {args.params!r}: expected P1,P2,..", key="--params")
+    if args.prior is not None and not args.prior > 0:
+        raise UserError(f"value {args.prior!r}: expected a positive number", key="--prior")
+    start = parse_assignments(args.start, "--start")
     doc, base = load_features(args.features)
-    res = run_diagnosis(doc, base, args.features, GapOptions(alpha=args.alpha))
+    res = run_diagnosis(doc, base, args.features, GapOptions(alpha=args.alpha), names, start, args.prior)
+    out = sys.stdout if args.json != "-" else sys.stderr
+    _print(res, out)
     if args.plot:
         try:
             plot_gap(res, args.plot)
         except OSError as e:
             raise UserError(f"cannot write: {e}", file=args.plot, key="--plot") from None
-    if not args.json:
-        g = res["gap"]
-        sys.stdout.write(f"gap {g['before']:.2f} -> {g['after']:.2f} (rms residual/sigma); "
-                         f"verdict: {res['verdict']}\n")
-        for e in res["effects"][:3]:
-            sys.stdout.write(f"  {e['name']:18s} {e['magnitude']:.4g} {e['unit']:4s} "
-                             f"gap_after {e['gap_after']:.2f} score {e['score']:.2f}\n")
+        out.write(f"  figure: {args.plot}\n")
+    if args.json and args.json != "-":
+        out.write(f"  result: {args.json}\n")
     if note := services.store_for_features(args.features, "diagnosis", res):
-        sys.stderr.write(f"labid diagnose: {note}\n")
+        out.write(f"  {note}\n")
     if args.csv:
         for f in services.write_result_tables(res, "diagnosis", args.csv):
-            sys.stderr.write(f"labid diagnose: wrote {f}\n")
+            out.write(f"  table: {f}\n")
     return res
+
+
+def _print(res: dict, out) -> None:
+    """The verdict, the gap before -> after, the top three candidates, pairing findings."""
+    g, ident = res["gap"], res["identification"]
+    v = res["verdict"]
+    what = {"none": "no significant gap", "unattributed": "a gap no candidate explains",
+            "pairing": "the peaks are paired with the wrong modes"}.get(v, f"{v} explains the gap")
+    out.write(f"verdict: {v} ({what}; chi^2 {g['chi2_before']:.1f} vs threshold {g['threshold_chi2']:.1f}, "
+              f"p = {g['p_value_before']:.2g})\n")
+    out.write(f"  gap {g['before']:.2f} -> {g['after']:.2f} (rms residual/sigma, 1 = noise); held-out "
+              f"{g['held_out_before']:.2f} -> {g['held_out_after']:.2f}\n")
+    out.write(f"  start: {', '.join(ident['parameters'] or [])} from {ident['source']} "
+              f"({'converged' if ident['converged'] else 'NOT converged'})\n")
+    for e in res["effects"][:3]:
+        mag = f"{e['magnitude']:.4g}" + (f" +- {e['std']:.2g}" if e.get("std") else "")
+        tag = "refitted" if e["refitted"] else "linear"
+        out.write(f"  {e['name']:18s} {mag} {e['unit']:4s} gap_after {e['gap_after']:.2f} "
+                  f"score {e['score']:.2f} ({tag})\n")
+    for w in res["where"][:6]:
+        out.write(f"  where: {w}\n")

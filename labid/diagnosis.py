@@ -2,33 +2,37 @@
 
 ``problem_from_features(doc, base_dir)`` turns the parsed features
 (``labid.features.parse_features``) into the ``engine.features.Features`` the
-diagnosis uses (the lowest modes, measured velocities only; UserError naming
-the key on bad input); ``run_diagnosis(doc, base_dir)`` runs
-``engine.gap.diagnose`` and returns its JSON document; ``plot_gap``
-(``labid.plots``) draws where the gap lies.
+diagnosis uses (every mode, as ``labid identify``; measured velocities only;
+UserError naming the key on bad input). ``start_estimate`` is the ONE call into
+the identification: the estimate ``labid identify`` reports with the same
+options (parameters, start, prior), handed to ``engine.gap.diagnose`` as an
+``engine.gap.StartEstimate``. ``run_diagnosis(doc, base_dir)`` runs both and
+returns the JSON document; ``plot_gap`` (``labid.plots``) draws where the gap lies.
 """
 from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from engine.features import Features, ModalData, WaveData
 from engine.forward import EffectError
-from engine.gap import GapError, GapOptions, diagnose
+from engine.gap import GapError, GapOptions, StartEstimate, diagnose
 from engine.laminate import PhysicsError
 
+from . import estimation, progress
 from .errors import UserError
 from .features import DEFAULT_MODAL_SIGMA_REL, DEFAULT_WAVE_SIGMA_REL, parse_features, read_features
 from .plots import plot_gap
 
 __all__ = ["problem_from_features", "problem_and_notes", "run_diagnosis", "plot_gap", "load_features",
-           "MAX_MODES"]
+           "start_estimate", "MAX_MODES"]
 
-#: modal frequencies used at most (lowest first)
-MAX_MODES = 12
+#: modal frequencies used at most (None: every mode, as labid identify; the per-mode
+#: discretisation error enters the whitening instead of a cut)
+MAX_MODES = None
 
 
 def load_features(path: str | Path) -> tuple[dict, Path]:
@@ -45,6 +49,8 @@ def problem_from_features(doc: Mapping, base_dir: str | Path = ".", src: str = "
 def _lowest_modes(md: ModalData, max_modes: int, notes: list[str]) -> ModalData:
     f = md.frequency_hz
     order = np.argsort(f)
+    if max_modes is None or len(f) <= max_modes:
+        return md
     if len(f) > max_modes:
         notes.append(f"modal: {len(f)} frequencies; the lowest {max_modes} are used (the default "
                      "plate mesh is converged for the lowest modes only)")
@@ -98,14 +104,57 @@ def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<fea
     return replace(feats, modal=modal, waves=tuple(waves)), notes
 
 
+def start_estimate(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
+                   names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
+                   prior: float | None = None) -> StartEstimate:
+    """The estimate ``labid identify FEATURES --params NAMES --start START --prior PRIOR``
+    reports (``labid.estimation.run``, method lm: same parameter selection, start,
+    prior, pairing, Birge and consistency checks), as the diagnosis' start.
+
+    This is the single seam between the diagnosis and the identification: re-point
+    it when the identification's entry point changes.
+    """
+    problem = estimation.problem_from_features(doc, base_dir=base_dir, src=src)
+    est = estimation.run(problem, names, start, method="lm", prior=prior)
+    st = estimation.start_values(problem, est.names, start)
+    md = problem.features.modal if problem.features is not None else None
+    pairing = "mac" if md is not None and md.shapes is not None else "order"
+    # identify's own peak -> mode assignment, when it reports one (issue 12: JSON ``pairing``)
+    report = est.to_dict().get("pairing")
+    mode_index = None
+    if pairing == "order" and isinstance(report, list) and report and all(
+            isinstance(r, Mapping) and "mode_index" in r for r in report):
+        mode_index = tuple(None if r["mode_index"] is None else int(r["mode_index"]) for r in report)
+        pairing = "identify"
+    return StartEstimate(names=tuple(est.names), params=est.params,
+                         std={n: float(s_) for n, s_ in zip(est.names, est.std)},
+                         converged=bool(est.converged), message=est.message, iterations=int(est.iterations),
+                         prior_rel_std=prior, prior_mean=st,
+                         pairing=pairing, mode_index=mode_index,
+                         source="labid identify (labid.estimation.run, method lm)",
+                         warnings=tuple(est.warnings))
+
+
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
-                  options: GapOptions | None = None) -> dict:
+                  options: GapOptions | None = None, names: Sequence[str] | None = None,
+                  start: Mapping[str, float] | None = None, prior: float | None = None) -> dict:
     """Diagnosis document (``GapResult.to_dict()``, CONTRACT section 3 keys first, plus
-    ``notes``) of parsed features."""
+    ``notes``) of parsed features, from identify's estimate (:func:`start_estimate`).
+    Progress (the estimate, candidates screened and refitted) on stderr via ``labid.progress``."""
     problem, notes = problem_and_notes(doc, base_dir, src)
+    progress.note("diagnosis: identifying the constants (as labid identify)")
+    st = start_estimate(doc, base_dir, src, names, start, prior)
+    bar = progress.bar(None, "candidate effects", unit="step")
+
+    def step(stage: str, done: int, total: int) -> None:
+        if getattr(bar, "total", total) != total:
+            bar.total = total
+        bar.update(1)
+        bar.set_postfix_str(stage)
     try:
-        res = diagnose(problem, options).to_dict()
-        res["notes"] = notes
+        with bar:
+            res = diagnose(problem, options, start=st, progress=step).to_dict()
+        res["notes"] = notes + list(st.warnings)
         return res
     except PhysicsError as e:
         raise UserError(f"unphysical nominal constants: {e}", file=src, key="specimen") from None

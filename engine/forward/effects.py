@@ -18,6 +18,19 @@ sensor_aperture (m)     strain averaged over length L (replacing the nominal L0)
                         a zero-phase wavenumber filter sinc(kL/2) (:func:`log_sinc_slope`).
 viscoelastic (1)        constant-Q (Kjartansson) loss factor eta; the constants
                         hold at F_REF.
+
+Real-plate effects (modelled in ``engine.gap.forward.GapForward``, not in the
+nominal ``ForwardModel``; the blind bench injects them through the same code):
+
+misalignment (deg)      material axes of the whole layup turned by +a in the plate
+                        plane (fibre or grain angle offset); waves: a path at
+                        direction phi sees the material at phi - a.
+ply_angle_error (deg)   the top ply (last listed) laid at its angle + e.
+density_gradient (1)    linear density rho(x) = rho (1 + g (2x/L - 1)) along the
+                        length (g >= 0: the sign is not seen by free-free
+                        frequencies, which are even in g for a symmetric plate).
+(A linear thickness taper is not in the library yet: it needs per-element
+laminates in engine.plate.)
 """
 from __future__ import annotations
 
@@ -27,7 +40,7 @@ from typing import Mapping
 import numpy as np
 
 __all__ = ["EffectSpec", "EFFECTS", "EffectError", "ALPHA_FIBRE", "ALPHA_MATRIX", "ALPHA_ISOTROPIC",
-           "F_REF", "temperature_params", "log_sinc_slope"]
+           "F_REF", "temperature_params", "log_sinc_slope", "PLATE_EFFECTS", "ANGLE_EFFECTS"]
 
 #: temperature coefficients of the moduli, 1/K: E -> E (1 + alpha dT) (typical CFRP / aluminium)
 ALPHA_FIBRE = -1.0e-4      # E1 of an orthotropic ply (fibre dominated)
@@ -63,7 +76,17 @@ EFFECTS: dict[str, EffectSpec] = {e.name: e for e in (
     EffectSpec("path_length", "m", -0.05, 0.05, 0.005, ("waves",), "true minus nominal wave path"),
     EffectSpec("sensor_aperture", "m", 0.0, 0.03, 0.01, ("waves",), "strain-averaging length of the wave sensor"),
     EffectSpec("viscoelastic", "1", 0.0, 0.1, 0.01, ("modal", "waves"), "constant-Q loss factor"),
+    EffectSpec("misalignment", "deg", 0.0, 8.0, 2.0, ("modal", "waves"),
+               "material axes of the whole layup turned in the plate plane"),
+    EffectSpec("ply_angle_error", "deg", -10.0, 10.0, 3.0, ("modal",), "top ply laid at a wrong angle"),
+    EffectSpec("density_gradient", "1", 0.0, 0.15, 0.05, ("modal",),
+               "linear density change along the length (relative change at each end)"),
 )}
+
+#: effects of the real plate (layup, geometry, material distribution): orthotropic layups only
+#: for the angle effects; evaluated by ``engine.gap.forward.GapForward``
+PLATE_EFFECTS = ("misalignment", "ply_angle_error", "density_gradient")
+ANGLE_EFFECTS = ("misalignment", "ply_angle_error")
 
 
 def temperature_params(params: Mapping[str, float], dT: float) -> dict[str, float]:

@@ -9,7 +9,11 @@ Public seam:
 * :mod:`.where`: ``feature_labels``, ``GroupStat`` (and the grouping/fold helpers);
 * :mod:`.candidates`: ``Candidate``, ``screen`` (signatures, detectability);
 * :mod:`.refit`: ``refit``, ``Refit`` (joint refit of constants and one effect);
-* :mod:`.residuals`: ``GapFit`` (whitened residuals/Jacobian), ``GapError``.
+* :mod:`.residuals`: ``GapFit`` (whitened residuals/Jacobian), ``GapError``;
+* :mod:`.start`: ``StartEstimate`` (identify's estimate, the diagnosis' start), ``own_estimate``;
+* :mod:`.forward`: ``GapForward`` (``ForwardModel`` + real-plate effects, fixed pairing);
+* :mod:`.pairing`: ``pairing_check``, ``propose_pairing`` (pairing as a cause);
+* :mod:`.convergence`: ``discretisation_error`` (per-mode FE error from two meshes).
 
 The effect registry is ``engine.forward.EFFECTS``.
 """
@@ -19,7 +23,12 @@ from .diagnose import (ConstantsChange, FeatureResiduals, GapFigures, GapOptions
 from .refit import Refit, RefitError, refit
 from .residuals import GapError, GapFit
 from .where import GroupStat, feature_labels
+from .start import StartEstimate, own_estimate
+from .forward import GapForward
+from .pairing import PairingCheck, pairing_check, propose_pairing
+from .convergence import discretisation_error
 
 __all__ = ["diagnose", "GapOptions", "GapResult", "GapFigures", "RankedEffect", "Undetectable",
            "ConstantsChange", "FeatureResiduals", "gap_test", "feature_labels", "GroupStat", "Candidate",
-           "screen", "Refit", "RefitError", "refit", "GapFit", "GapError"]
+           "screen", "Refit", "RefitError", "refit", "GapFit", "GapError", "StartEstimate", "own_estimate",
+           "GapForward", "PairingCheck", "pairing_check", "propose_pairing", "discretisation_error"]

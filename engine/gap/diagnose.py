@@ -3,11 +3,14 @@
 Procedure (:func:`diagnose`), on features whitened by their sigmas (plus a small
 model-discretisation allowance, ``GapOptions.model_rel_sigma``):
 
-1. Best fit of the constants (``engine.fit.estimate``, log-parameters,
-   Gaussian prior ``prior_rel_std`` about the nominal values); chi^2 of the
+1. The constants are those ``labid identify`` estimated (a :class:`StartEstimate`:
+   same parameters, prior, pairing; engine-only callers get
+   :func:`~engine.gap.start.own_estimate`, the same estimator); chi^2 of the
    whitened residuals against the chi^2 law on the degrees of freedom left
    (n minus the trace of the hat matrix, :func:`gap_test`): a gap is declared
    when the p-value is below ``alpha`` (the false-alarm rate on clean data).
+   With a gap and modes paired by order, :mod:`engine.gap.pairing` checks
+   whether re-pairing explains it (verdict ``pairing``).
 2. Where: chi^2 split by modality, mode, mode family (from the predicted mode
    shapes), frequency band, wave mode and direction (:mod:`engine.gap.where`).
 3. Which: every candidate effect is screened (:mod:`engine.gap.candidates`:
@@ -16,7 +19,8 @@ model-discretisation allowance, ``GapOptions.model_rel_sigma``):
    (:mod:`engine.gap.refit`), ranked by chi^2 (equal parameter count, so by
    BIC too), and checked on held-out data (two interleaved folds of modes and
    of wave bands, linearised about the fit).
-4. Verdict: ``none`` without a significant gap; the best effect when it
+4. Verdict: ``none`` without a significant gap; ``pairing`` when re-pairing the
+   peaks passes the test and beats every effect; the best effect when it
    passes the chi^2 test (p > ``accept_alpha``), beats "no effect" by BIC and
    shrinks the held-out gap; otherwise ``unattributed``. Effects whose chi^2
    is within ``confusable_dchi2`` of the best form the confusable set.
@@ -29,17 +33,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, replace
-from typing import Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 from scipy import stats
 
 from ..features import Features
-from ..fit import Estimate, Prior, estimate, whitened_jacobian
 from ..forward import EFFECTS, ForwardModel
+from ..forward.effects import ANGLE_EFFECTS, PLATE_EFFECTS
 from .candidates import Candidate, applies, screen
+from .convergence import discretisation_error
+from .forward import GapForward
+from .pairing import pairing_check
 from .refit import RefitError, refit
 from .residuals import GapError, GapFit
+from .start import StartEstimate, identify_pairing, own_estimate
 from .where import GroupStat, feature_labels, folds, group_table, groups, held_out, mode_families
 
 __all__ = ["GapOptions", "GapResult", "GapFigures", "RankedEffect", "Undetectable", "ConstantsChange",
@@ -52,13 +60,14 @@ class GapOptions:
 
     alpha: float = 0.01
     accept_alpha: float = 0.001
-    prior_rel_std: float = 0.3
     model_rel_sigma: tuple[float, float] = (1.5e-4, 2e-4)   # (modal, waves) relative
     detect_sigma: float = 3.0
-    top_k: int = 4
+    top_k: int = 3
     confusable_dchi2: float = 4.0
+    skip_dchi2: float = 25.0         # linear chi^2 this far above an accepted refit's: not refitted
     candidates: tuple[str, ...] = tuple(EFFECTS)
-    gn_iter: int = 15
+    max_nfev: int = 30
+    discretisation: bool = True      # per-mode FE error from a second, finer mesh in the whitening
 
 
 def gap_test(r: np.ndarray, J: np.ndarray, w: np.ndarray, alpha: float) -> dict:
@@ -121,6 +130,7 @@ class RankedEffect:
     bias_in_constants_per_unit: Mapping[str, float]
     constants_after: Mapping[str, float] | None
     iterations: int | None
+    converged: bool | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -188,8 +198,13 @@ class GapResult:
     features: FeatureResiduals
     converged: bool
     message: str
+    start: StartEstimate | None = None
+    pairing: dict | None = None
+    model_sigma: np.ndarray | None = None
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
+        st = self.start
         return {
             "gap": self.gap.to_dict(),
             "where": list(self.where),
@@ -202,26 +217,38 @@ class GapResult:
             "groups": [g.to_dict() for g in self.groups],
             "constants": self.constants.to_dict(),
             "features": self.features.to_dict(),
-            "identification": {"converged": self.converged, "message": self.message},
+            "identification": {
+                "converged": self.converged, "message": self.message,
+                "source": None if st is None else st.source,
+                "parameters": None if st is None else list(st.names),
+                "prior_rel_std": None if st is None else st.prior_rel_std,
+                "pairing": None if st is None else st.pairing},
+            "pairing": self.pairing,
+            "model_sigma_hz": None if self.model_sigma is None else self.model_sigma.tolist(),
+            "diagnosis_notes": list(self.notes),
         }
 
 
 # ------------------------------------------------------------------ steps --
 @dataclass(frozen=True)
 class _ConstantsFit:
-    """Step 1: the constants fitted without effect, and the gap test there."""
+    """Step 1: the start estimate (identify's) and the gap test there."""
 
-    est: Estimate
+    start: StartEstimate
     p_hat: dict[str, float]
-    w: np.ndarray            # prior sqrt-weights (log constants)
-    theta_nom: np.ndarray    # log nominal constants
+    w: np.ndarray            # prior sqrt-weights (log constants); zeros: maximum likelihood
+    theta_prior: np.ndarray  # log prior mean (log start when no prior)
     J: np.ndarray            # whitened Jacobian (log constants) at p_hat
     r0: np.ndarray           # whitened residual at p_hat
     test: dict
 
     @property
+    def theta(self) -> np.ndarray:
+        return np.log([self.p_hat[n] for n in self.start.names])
+
+    @property
     def dtheta(self) -> np.ndarray:
-        return np.log([self.p_hat[n] for n in self.est.names]) - self.theta_nom
+        return self.theta - self.theta_prior
 
 
 def _check(problem: Features, opts: GapOptions) -> None:
@@ -234,21 +261,19 @@ def _check(problem: Features, opts: GapOptions) -> None:
         raise GapError(f"candidates {sorted(unknown)}: expected names from {list(EFFECTS)}")
 
 
-def _fit_constants(F: GapFit, opts: GapOptions) -> _ConstantsFit:
-    names, nominal = F.names, F.nominal
-    blocks = F.blocks()
-    prior = Prior(mean=nominal, rel_std={n: opts.prior_rel_std for n in names})
+def _base(F: GapFit, start: StartEstimate, opts: GapOptions) -> _ConstantsFit:
+    names = start.names
+    p_hat = {n: float(start.params[n]) for n in names}
+    k = len(names)
+    w = np.full(k, 0.0 if start.prior_rel_std is None else 1.0 / start.prior_rel_std)
+    mean = start.prior_mean or p_hat
+    theta_prior = np.log([mean.get(n, p_hat[n]) for n in names])
     try:
-        est = estimate(blocks, names, nominal, prior=prior, xtol=1e-4, dtol=1e-3, max_iter=30)
-    except np.linalg.LinAlgError as exc:
-        raise GapError(f"identification of the constants failed ({exc})") from None
-    p_hat = est.params
-    w = np.full(len(names), 1.0 / opts.prior_rel_std)
-    theta_nom = np.log([nominal[n] for n in names])
-    jacs = whitened_jacobian(blocks, p_hat, names)
-    J = np.vstack([jacs[b.name] for b in blocks])
-    r0 = F.residual(p_hat, {})
-    return _ConstantsFit(est, p_hat, w, theta_nom, J, r0, gap_test(r0, J, w, opts.alpha))
+        J = F.jacobian(p_hat, {})
+        r0 = F.residual(p_hat, {})
+    except ValueError as exc:
+        raise GapError(f"the start estimate cannot be evaluated ({exc})") from None
+    return _ConstantsFit(start, p_hat, w, theta_prior, J, r0, gap_test(r0, J, w, opts.alpha))
 
 
 def _families(problem: Features, fw: ForwardModel, p_hat) -> list[str] | None:
@@ -260,23 +285,49 @@ def _families(problem: Features, fw: ForwardModel, p_hat) -> list[str] | None:
         return None
 
 
-def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opts: GapOptions
-                      ) -> list[Candidate]:
-    """Every applicable candidate screened; the top_k detectable ones refitted."""
+def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opts: GapOptions,
+                      progress: Callable[[str, int, int], None] | None) -> list[Candidate]:
+    """Every applicable candidate screened; the top_k detectable ones refitted
+    (``progress(stage, done, total)`` after each step)."""
     Ja = np.vstack([base.J, np.diag(base.w)])     # augmented Jacobian for projections (prior rows)
-    cands = [screen(name, F, base.p_hat, base.r0, Ja, F.names, opts.detect_sigma)
-             for name in opts.candidates if applies(name, problem)]
+    names = [n for n in opts.candidates if applies(n, problem)
+             and (n not in PLATE_EFFECTS or hasattr(F.fw, "modal_forward_with"))
+             and (n not in ANGLE_EFFECTS or not problem.material_obj.isotropic)]
+    total = len(names) + min(opts.top_k, len(names))
+    cands = []
+    for i, name in enumerate(names):
+        cands.append(screen(name, F, base.p_hat, base.r0, Ja, F.names, opts.detect_sigma))
+        if progress:
+            progress("screen", i + 1, total)
     ranked = sorted([c for c in cands if c.error is None and c.detectable], key=lambda c: c.chi2_linear)
-    if not ranked:
-        return cands
-    Jnom = F.jacobian(F.nominal, {})
+    if not base.test["significant"]:
+        ranked = []          # no gap: nothing to attribute (screening still reports undetectable effects)
     done: dict[str, Candidate] = {}
-    for c in ranked[:opts.top_k]:
+    best_ok = math.inf      # chi^2 of the best accepted refit so far
+    dof = max(base.test["dof"] - 1, 1)
+    for j, c in enumerate(ranked[:opts.top_k]):
+        if c.chi2_linear > best_ok + opts.skip_dchi2:
+            continue            # far behind an accepted refit even in the linear estimate: not refitted
         try:
-            rf = refit(c.name, c.magnitude_linear, F, Jnom, base.w, base.theta_nom, fl, opts.gn_iter)
+            rf = refit(c.name, c.magnitude_linear, F, base.theta, base.w, base.theta_prior, fl, opts.max_nfev)
+            far = bool(np.any(np.abs(base.theta - base.theta_prior) > math.log(1.5)))
+            if (far or not rf.converged or stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha) \
+                    and np.any(base.theta_prior != base.theta):
+                # second start: identify's start values (its estimate may sit in a minimum the
+                # effect made: a constant > 1.5x from its start, or a refit not converged / rejected)
+                try:
+                    rf2 = refit(c.name, c.magnitude_linear, F, base.theta_prior, base.w, base.theta_prior, fl,
+                                opts.max_nfev)
+                    rf = rf2 if rf2.chi2 < rf.chi2 else rf
+                except RefitError:
+                    pass
             done[c.name] = replace(c, refit=rf)
+            if stats.chi2.sf(rf.chi2, dof) > opts.accept_alpha:
+                best_ok = min(best_ok, rf.chi2)
         except RefitError as exc:
             done[c.name] = replace(c, error=str(exc))
+        if progress:
+            progress("refit", len(names) + j + 1, total)
     return [done.get(c.name, c) for c in cands]
 
 
@@ -318,22 +369,41 @@ def _ranking(cands: list[Candidate], chi0: float, n: int) -> list[RankedEffect]:
             held_out_after=None if rf is None else rf.held_out_after, detectable=c.detectable,
             absorbed_fraction=float(c.absorbed_fraction), bias_in_constants_per_unit=c.bias_per_unit,
             constants_after=None if rf is None else rf.constants,
-            iterations=None if rf is None else rf.iterations))
+            iterations=None if rf is None else rf.iterations,
+            converged=None if rf is None else rf.converged))
     return out
 
 
 # -------------------------------------------------------------- diagnosis --
 def diagnose(problem: Features, options: GapOptions | None = None,
-             forward: ForwardModel | None = None) -> GapResult:
-    """Gap diagnosis of measured features against the nominal model (see module docstring).
+             forward: ForwardModel | None = None, start: StartEstimate | None = None,
+             progress: Callable[[str, int, int], None] | None = None) -> GapResult:
+    """Gap diagnosis of measured features at a start estimate (see module docstring).
 
-    ``forward`` replaces the default forward model of ``problem`` (e.g. another mesh).
+    ``start``: the estimate ``labid identify`` reports (``labid.diagnosis.start_estimate``);
+    None: :func:`engine.gap.start.own_estimate` (identify's default estimator).
+    ``forward`` replaces the default forward model of ``problem`` (e.g. another
+    mesh; a :class:`~engine.gap.forward.GapForward` for the real-plate effects).
+    ``progress(stage, done, total)`` is called after each candidate screened / refitted.
     """
     opts = options or GapOptions()
     _check(problem, opts)
-    fw = forward or ForwardModel(problem)
-    F = GapFit(problem, fw, opts.model_rel_sigma)
-    base = _fit_constants(F, opts)
+    pairing = start.pairing if start is not None else identify_pairing(problem.modal)
+    selection = start.mode_index if start is not None else None
+    fw = forward or GapForward(problem, pairing=None if selection is not None else pairing, selection=selection)
+    names = start.names if start is not None else None
+    F0 = GapFit(problem, fw, opts.model_rel_sigma, names=names)
+    if start is None:
+        start = own_estimate(F0)
+    model_sigma, notes = None, []
+    if opts.discretisation and fw.n_modal and forward is None:
+        try:
+            d = discretisation_error(fw, start.params)
+            model_sigma = np.concatenate([d, np.zeros(len(F0.y) - fw.n_modal)])
+        except Exception as exc:  # noqa: BLE001 - the allowance falls back to the constant one
+            notes.append(f"discretisation error not estimated ({exc}); constant model allowance only")
+    F = GapFit(problem, fw, opts.model_rel_sigma, names=start.names, model_sigma=model_sigma)
+    base = _base(F, start, opts)
     r0, test = base.r0, base.test
     n, chi0 = len(r0), test["chi2"]
 
@@ -343,23 +413,34 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     fl = folds(labels)
     ho0 = held_out(r0, base.J, base.w, base.dtheta, fl)
 
-    cands = _screen_and_refit(problem, F, base, fl, opts)
+    pair = None
+    if test["significant"] and fw.n_modal and pairing == "order" and selection is None:
+        pair = pairing_check(F, base.p_hat, r0, opts.alpha, test["dof"])
+    cands = _screen_and_refit(problem, F, base, fl, opts, progress)
     refitted = sorted([c for c in cands if c.refit is not None], key=lambda c: c.refit.chi2)
     verdict, confusable, p_best = _verdict(refitted, test, ho0, n, opts)
+    if pair is not None and pair.explains and (verdict == "unattributed" or (
+            refitted and pair.chi2 < refitted[0].refit.chi2)):
+        verdict, confusable, p_best = "pairing", [], pair.p_value
     chosen = next((c.refit for c in refitted if c.name == verdict), None)
 
-    after_r = chosen.residual if chosen is not None else r0
+    after_r = chosen.residual if chosen is not None else (pair.residual if verdict == "pairing" else r0)
     p_hat, names = base.p_hat, F.names
     gap = GapFigures(
         before=float(math.sqrt(chi0 / n)), after=float(math.sqrt(float(after_r @ after_r) / n)),
         held_out_before=ho0, held_out_after=chosen.held_out_after if chosen is not None else ho0,
         chi2_before=chi0, chi2_after=float(after_r @ after_r), dof=float(test["dof"]), n=n,
-        p_value_before=test["p_value"], p_value_after=p_best if chosen is not None else test["p_value"],
+        p_value_before=test["p_value"], p_value_after=p_best if p_best is not None else test["p_value"],
         threshold_chi2=test["threshold"], false_alarm_rate=opts.alpha, significant=bool(test["significant"]))
     where = [g for g in table0 if g.significant] if test["significant"] else []
+    where_names = tuple(g.group for g in where)
+    if pair is not None and pair.findings:
+        where_names = tuple(pair.findings) + where_names
+    after_constants = chosen.constants if chosen is not None else (
+        pair.constants if verdict == "pairing" else p_hat)
     return GapResult(
         gap=gap,
-        where=tuple(g.group for g in where),
+        where=where_names,
         where_detail=tuple(where),
         effects=tuple(_ranking(cands, chi0, n)),
         verdict=verdict,
@@ -369,12 +450,13 @@ def diagnose(problem: Features, options: GapOptions | None = None,
         errors={c.name: c.error for c in cands if c.error is not None},
         groups=tuple(table0),
         constants=ConstantsChange(
-            before=p_hat, before_std={n_: float(s_) for n_, s_ in zip(names, base.est.std)},
-            after=chosen.constants if chosen is not None else p_hat,
-            relative_change=({n_: chosen.constants[n_] / p_hat[n_] - 1.0 for n_ in names}
-                             if chosen is not None else {n_: 0.0 for n_ in names})),
+            before=p_hat, before_std={n_: float(start.std.get(n_, float("nan"))) for n_ in names},
+            after=after_constants,
+            relative_change={n_: after_constants[n_] / p_hat[n_] - 1.0 for n_ in names}),
         features=FeatureResiduals(
             labels=tuple(lb["label"] for lb in labels), modality=tuple(lb["modality"] for lb in labels),
             set=tuple(lb["set"] for lb in labels), residual_before=r0, residual_after=after_r,
             sigma=F.sigma, mode_families=None if families is None else tuple(families)),
-        converged=bool(base.est.converged), message=base.est.message)
+        converged=bool(start.converged), message=start.message,
+        start=start, pairing=None if pair is None else pair.to_dict(),
+        model_sigma=None if model_sigma is None else model_sigma[:fw.n_modal], notes=tuple(notes))

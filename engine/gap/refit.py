@@ -1,12 +1,16 @@
-"""Joint refit of the constants and one candidate effect.
+"""Joint refit of the constants and one candidate effect (``scipy.optimize.least_squares``).
 
-Levenberg-Marquardt on the nonlinear whitened residuals, from the nominal
-constants and the linear estimate of the effect, with the constants'
-Jacobian frozen at the nominal point (the true constants lie within tens of
-per cent of nominal) and the effect's column re-evaluated by a secant at
-every iterate. Covariance from the final Gauss-Newton matrix. The iterations
-are the project's own (kept in this step; ``scipy.optimize.least_squares``
-is the candidate replacement).
+Unknowns: the log-constants theta of the start estimate's parameters and the
+effect magnitude a (bounded to its plausible range). Residuals: the whitened
+feature residuals, plus the prior rows w (theta - theta_prior) when the start
+estimate had a prior. Trust-region reflective (``trf``) from the start
+estimate and the linear estimate of the effect, the constants kept within a
+factor 3 of the start (``THETA_BOX``); Jacobian: the constants'
+columns from :meth:`GapFit.jacobian` at every iterate (analytic modal
+sensitivities; the wave rows, finite differences of SAFE, frozen at the
+start), the effect's column by a forward difference of 0.1 x its typical
+magnitude (towards the inside of the range). ``converged`` is scipy's own
+termination status (>0: ftol/xtol/gtol met; 0: evaluation budget spent). Covariance from the final Gauss-Newton matrix.
 """
 from __future__ import annotations
 
@@ -15,12 +19,18 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+from scipy.optimize import least_squares
 
 from ..forward import EFFECTS
 from .residuals import GapError, GapFit
 from .where import held_out
 
-__all__ = ["Refit", "RefitError", "refit"]
+__all__ = ["Refit", "RefitError", "refit", "THETA_BOX"]
+
+#: the constants move at most by this factor's log from the start estimate during a refit
+THETA_BOX = math.log(3.0)
+#: whitened residual returned where the constants are inadmissible (trust region backs off)
+INADMISSIBLE = 1e3
 
 
 class RefitError(GapError):
@@ -30,7 +40,8 @@ class RefitError(GapError):
 @dataclass(frozen=True)
 class Refit:
     """Result of a joint refit: effect magnitude (+- std, effect unit), chi^2 and
-    whitened residual after it, fitted constants, held-out gap."""
+    whitened residual after it, fitted constants, held-out gap; ``iterations``
+    is the number of residual evaluations, ``converged`` scipy's status > 0."""
 
     iterations: int
     converged: bool
@@ -46,79 +57,81 @@ def _unpack(x, names):
     return {n: float(v) for n, v in zip(names, x)}
 
 
-def refit(name: str, magnitude_linear: float, F: GapFit, Jnom: np.ndarray, w: np.ndarray,
-          theta_nom: np.ndarray, folds: Sequence[np.ndarray], gn_iter: int) -> Refit:
+def refit(name: str, magnitude_linear: float, F: GapFit, theta0: np.ndarray, w: np.ndarray,
+          theta_prior: np.ndarray, folds: Sequence[np.ndarray], max_nfev: int = 30) -> Refit:
     """Joint fit of the constants and effect ``name`` (see module docstring).
 
-    ``Jnom``: whitened Jacobian of the constants (log) at nominal; ``w``: prior
-    sqrt-weights about ``theta_nom`` (log nominal constants); ``gn_iter``:
-    maximum iterations. Raises :class:`RefitError` if the model is undefined
-    at the start.
+    ``theta0``: log-constants at the start estimate; ``w``: prior sqrt-weights
+    about ``theta_prior`` (zeros: no prior). Raises :class:`RefitError` if the
+    model is undefined at the start.
     """
     spec = EFFECTS[name]
     names = F.names
     k = len(names)
     h = 0.1 * spec.typical
-    a = float(np.clip(magnitude_linear, spec.lo, spec.hi))
-    theta = theta_nom.copy()
+    has_prior = bool(np.any(w > 0))
+    a0 = float(np.clip(magnitude_linear, spec.lo, spec.hi))
+    if a0 == spec.lo == 0.0 and spec.hi > 0:
+        a0 = 0.1 * spec.typical      # start inside the range (a bound is a stationary point for 2nd-order effects)
 
-    def resid(th, a_):
-        return F.residual(_unpack(np.exp(th), names), {name: a_})
+    memo: dict = {}
+    started = False
 
-    def col(th, a_, r_):
-        step = h if a_ + h <= spec.hi else -h
-        return (resid(th, a_ + step) - r_) / step
+    def feat(x):                      # whitened feature residual, memoised (jac reuses resid's)
+        key = x.tobytes()
+        if key not in memo:
+            memo.clear()
+            try:
+                memo[key] = F.residual(_unpack(np.exp(x[:k]), names), {name: float(x[k])})
+            except ValueError:        # inadmissible constants (PhysicsError): a wall the trust region backs off
+                if not started:
+                    raise
+                memo[key] = np.full(len(F.y), INADMISSIBLE)
+        return memo[key]
 
+    def resid(x):
+        r = feat(x)
+        return np.concatenate([r, w * (x[:k] - theta_prior)]) if has_prior else r
+
+    def jac(x):
+        p, a = _unpack(np.exp(x[:k]), names), float(x[k])
+        r = feat(x)
+        step = h if a + h <= spec.hi else -h
+        col = (F.residual(p, {name: a + step}) - r) / step
+        Jc = F.jacobian(p, {name: a}, waves=False)
+        if Jw0 is not None:
+            Jc = np.vstack([Jc, Jw0])
+        J = np.column_stack([Jc, col])
+        if has_prior:
+            J = np.vstack([J, np.column_stack([np.diag(w), np.zeros(k)])])
+        return J
+
+    x0 = np.concatenate([theta0, [a0]])
     try:
-        r = resid(theta, a)
-        s = col(theta, a, r)
+        feat(x0)
     except ValueError as exc:
         raise RefitError(f"refit failed: {exc}") from None
-    cost = float(r @ r)
-    mu = 1e-3
-    it = 0
-    converged = False
-    for it in range(1, gn_iter + 1):
-        A = np.vstack([np.column_stack([Jnom, s]), np.column_stack([np.diag(w), np.zeros(k)])])
-        b = np.concatenate([r, w * (theta - theta_nom)])
-        M, g = A.T @ A, A.T @ b
-        D = np.diag(np.maximum(np.diag(M), 1e-12 * np.max(np.diag(M))))
-        ok = False
-        for _ in range(10):
-            try:
-                d = -np.linalg.solve(M + mu * D, g)
-            except np.linalg.LinAlgError:
-                mu *= 10
-                continue
-            th_new = theta + np.clip(d[:k], -0.5, 0.5)
-            a_new = float(np.clip(a + d[k], spec.lo, spec.hi))
-            try:
-                r_new = resid(th_new, a_new)
-            except ValueError:
-                mu *= 10
-                continue
-            c_new = float(r_new @ r_new + np.sum((w * (th_new - theta_nom)) ** 2))
-            if c_new < cost + float(np.sum((w * (theta - theta_nom)) ** 2)) or c_new == 0:
-                ok = True
-                break
-            mu *= 4
-        if not ok:
-            converged = True   # no decrease possible: at the minimum (to the frozen Jacobian)
-            break
-        gain = cost + float(np.sum((w * (theta - theta_nom)) ** 2)) - c_new
-        theta, a, r = th_new, a_new, r_new
-        cost = float(r @ r)
-        mu = max(mu / 3, 1e-9)
-        s = col(theta, a, r)
-        if gain < 1e-3 * max(1.0, cost):
-            converged = True
-            break
-    Jf = np.column_stack([Jnom, s])
+    started = True
+    nm = F.fw.n_modal
+    # the wave rows of the constants' Jacobian (finite differences of SAFE) frozen at the start
+    Jw0 = F.jacobian(_unpack(np.exp(theta0), names), {name: a0})[nm:] if len(F.y) > nm else None
+    lo = np.concatenate([theta0 - THETA_BOX, [spec.lo]])
+    hi = np.concatenate([theta0 + THETA_BOX, [spec.hi]])
+    try:
+        res = least_squares(resid, x0, jac=jac, bounds=(lo, hi), method="trf",
+                            x_scale=np.concatenate([np.full(k, 0.05), [spec.typical]]),
+                            max_nfev=max_nfev, ftol=1e-3, xtol=1e-5, gtol=1e-6)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise RefitError(f"refit failed: {exc}") from None
+    x = res.x
+    n = len(F.y)
+    r = res.fun[:n]
+    Jf = res.jac[:n]
     A = Jf.T @ Jf + np.diag(np.concatenate([w ** 2, [0.0]]))
     try:
         std = float(math.sqrt(max(np.linalg.inv(A)[k, k], 0.0)))
     except np.linalg.LinAlgError:
         std = float("inf")
-    return Refit(iterations=it, converged=converged, magnitude=float(a), std=std, chi2=float(r @ r),
-                 residual=r, constants=_unpack(np.exp(theta), names),
-                 held_out_after=held_out(r, Jf, w, theta - theta_nom, folds))
+    return Refit(iterations=int(res.nfev), converged=bool(res.status > 0), magnitude=float(x[k]), std=std,
+                 chi2=float(r @ r), residual=r, constants=_unpack(np.exp(x[:k]), names),
+                 held_out_after=held_out(r, Jf, w, x[:k] - theta_prior, folds))

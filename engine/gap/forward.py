@@ -1,0 +1,148 @@
+"""The diagnosis' forward model: ``ForwardModel`` plus the real-plate effects and a fixed pairing.
+
+:class:`GapForward` predicts every feature like ``engine.forward.ForwardModel``
+and adds the effects of ``engine.forward.effects.PLATE_EFFECTS``:
+
+* ``misalignment`` a (deg): every ply at angle + a (plate model); a wave path at
+  direction phi sees the material at phi - a (SAFE);
+* ``ply_angle_error`` e (deg): the top ply (last listed) at angle + e;
+* ``density_gradient`` g: rho(x) = rho (1 + g xi), xi = 2x/L - 1: the laminate
+  density scaled by (1 - g) plus lumped point masses rho h dA g (1 + xi) on a
+  regular grid (translational inertia exact to the grid; rotary inertia of the
+  gradient neglected, O(h^2/L^2));
+
+``pairing`` fixes how measured modes are paired: ``"order"`` / ``"mac"`` as
+``labid identify`` does (``engine.forward.ModalForward``), or None for the
+``ForwardModel`` default. ``selection`` (one predicted elastic-mode index per
+peak, None for a peak identify left unexplained) fixes identify's own
+assignment: those modes are predicted by order and picked; :attr:`unexplained`
+masks the peaks without a partner (``GapFit`` gives them no residual). Units SI, angles in degrees.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import lru_cache
+from typing import Mapping
+
+import numpy as np
+
+from ..features import Features, WaveData
+from ..forward import ForwardModel, ModalForward, SelectedModes
+from ..forward.effects import F_REF, PLATE_EFFECTS, EffectError, temperature_params
+from ..laminate import Laminate, Ply
+
+__all__ = ["GapForward", "turned_laminate"]
+
+#: lumped-mass grid of the density gradient / taper (points along x, y)
+MASS_GRID = (24, 12)
+
+
+def turned_laminate(lam: Laminate, misalignment: float = 0.0, ply_error: float = 0.0) -> Laminate:
+    """The laminate with every ply turned by ``misalignment`` deg and the top ply by ``ply_error`` more."""
+    n = len(lam.plies)
+    return Laminate(tuple(Ply(p.material, p.angle_deg + misalignment + (ply_error if i == n - 1 else 0.0),
+                              p.thickness) for i, p in enumerate(lam.plies)))
+
+
+class GapForward(ForwardModel):
+    """``ForwardModel`` with the real-plate effects and a fixed pairing (see module docstring)."""
+
+    def __init__(self, features: Features, mesh=None, safe_order: int | None = None, plate_model=None,
+                 pairing: str | None = None, selection=None):
+        self.unexplained = None
+        self._selection = None
+        if selection is not None and features.modal is not None:
+            pairing = "order"
+            self._selection = np.array([0 if j is None else int(j) for j in selection], int)
+            self.unexplained = np.array([j is None for j in selection], bool)
+        if pairing is not None and features.modal is not None:
+            features = replace(features, modal=replace(features.modal, pairing=pairing))
+        super().__init__(features, mesh=mesh, safe_order=safe_order, plate_model=plate_model)
+        self.pairing = pairing
+        # few models at a time: a refit moves the effect every evaluation, and each plate
+        # model holds its matrices and factorisation (the parent caches 32: ~900 MiB)
+        self._plate_fw = lru_cache(maxsize=4)(self._build_plate_forward)
+        self._misalign = 0.0
+
+    # -- modal -------------------------------------------------------------
+    def modal_forward(self, mass: float = 0.0, spring: float = 0.0, thickness: float = 0.0):
+        """As ``ForwardModel.modal_forward``; with a fixed ``pairing`` built here (small cache)."""
+        if self.pairing is None:
+            return super().modal_forward(mass, spring, thickness)
+        return self._plate_fw((float(mass), float(spring), float(thickness)), (0.0,) * len(PLATE_EFFECTS))
+
+    def modal_forward_with(self, effects: Mapping[str, float]):
+        """The paired modal forward model with every modal effect of ``effects`` built in."""
+        e = effects
+        plate = tuple(float(e.get(k, 0.0)) for k in PLATE_EFFECTS)
+        base = (float(e.get("sensor_mass", 0.0)), float(e.get("support_stiffness", 0.0)),
+                float(e.get("thickness", 0.0)))
+        if not any(plate) and self.pairing is None:
+            return super().modal_forward(*base)
+        return self._plate_fw(base, plate)
+
+    def _build_plate_forward(self, base: tuple, plate: tuple):
+        mass, spring, thickness = base
+        mis, ply, g = plate
+        p = self.features
+        lam = turned_laminate(p.laminate, mis, ply) if (mis or ply) else p.laminate
+        if thickness:
+            lam = lam.scaled_thickness(1.0 + thickness)
+        if g:
+            mat = lam.materials[p.material] if p.material else next(iter(lam.materials.values()))
+            lam = lam.with_params({"density": mat.density * (1.0 - g)}, mat.name)
+        model = self.base.with_laminate(lam) if lam is not p.laminate else self.base
+        pts = []
+        if g:
+            nx, ny = MASS_GRID
+            xs = (np.arange(nx) + 0.5) * p.length / nx
+            ys = (np.arange(ny) + 0.5) * p.width / ny
+            m_area = p.laminate.mean_density * p.laminate.thickness * (1.0 + thickness)   # kg/m^2
+            dA = p.length * p.width / (nx * ny)
+            for x in xs:
+                m = m_area * dA * g * (1.0 + (2.0 * x / p.length - 1.0))
+                pts += [(x, y, m) for y in ys]
+        if mass and not p.rig.accelerometers:
+            raise EffectError("sensor_mass needs rig.accelerometers")
+        pts += p.rig.masses(mass)
+        pts = [q for q in pts if q[2] > 0]
+        if pts:
+            model = model.with_point_masses(pts)
+        if spring:
+            if not p.rig.supports:
+                raise EffectError("support_stiffness needs rig.supports")
+            model = model.with_springs([(x, y, spring) for x, y in p.rig.supports])
+        md = p.modal
+        if self._selection is not None:
+            inner = ModalForward(model, int(self._selection.max()) + 1, material=p.material)
+            return SelectedModes(inner, self._selection)
+        return ModalForward(model, self.n_modal, points=md.points if md.shapes is not None else None,
+                            shapes=md.shapes, material=p.material)
+
+    def predict_modal(self, params: Mapping[str, float], effects: Mapping[str, float]) -> np.ndarray:
+        if self.pairing is None and not any(effects.get(k, 0.0) for k in PLATE_EFFECTS):
+            return super().predict_modal(params, effects)
+        stripped = {k: v for k, v in effects.items() if k not in PLATE_EFFECTS}
+        par = temperature_params(params, stripped.get("temperature", 0.0))
+        f0 = self.modal_forward_with(effects).predict(par)
+        eta = stripped.get("viscoelastic", 0.0)
+        if eta:
+            f0 = F_REF * (f0 / F_REF) ** (1.0 / (1.0 - eta / np.pi))
+        return f0
+
+    # -- waves -------------------------------------------------------------
+    def predict_waves(self, params: Mapping[str, float], effects: Mapping[str, float]) -> list[np.ndarray]:
+        self._misalign = float(effects.get("misalignment", 0.0))
+        try:
+            return super().predict_waves(params, {k: v for k, v in effects.items() if k not in PLATE_EFFECTS})
+        finally:
+            self._misalign = 0.0
+
+    def _turned(self, w: WaveData) -> WaveData:
+        return replace(w, direction_deg=w.direction_deg - self._misalign) if self._misalign else w
+
+    def group_velocity(self, params, thickness: float, w: WaveData, f: np.ndarray) -> np.ndarray:
+        return super().group_velocity(params, thickness, self._turned(w), f)
+
+    def phase_velocity(self, params, thickness: float, w: WaveData, f: np.ndarray) -> np.ndarray:
+        return super().phase_velocity(params, thickness, self._turned(w), f)
