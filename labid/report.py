@@ -192,6 +192,25 @@ def uncertainty_statement(ident: dict) -> str:
             "a coverage probability of about 95 % for a normal distribution (JCGM 100:2008, GUM).</p>")
 
 
+def budget_html(budget: Any, params: dict) -> str:
+    """The GUM budget (``uncertainty_budget`` of labid identify, docs/uncertainty.md): per
+    constant u_c and U, and the standard uncertainty each input contributes."""
+    consts = budget.get("constants") if isinstance(budget, dict) else None
+    if not isinstance(consts, dict) or not consts:
+        return ""
+    names = [n for n in params if n in consts]
+    sources = list(dict.fromkeys(src for n in names for src in (consts[n].get("contributions") or {})))
+    rows = [[html.escape(str(src))] + [
+        constant_cells(n, consts[n].get("value"), (consts[n]["contributions"].get(src) or {}).get("u"))[1]
+        if src in (consts[n].get("contributions") or {}) else "—" for n in names] for src in sources]
+    rows.append(["<b>combined u_c</b>"] + [constant_cells(n, consts[n].get("value"), consts[n].get("u_combined"))[1]
+                                           for n in names])
+    rows.append([f"<b>expanded U (k={_fmt(scalar(budget.get('coverage_factor')))})</b>"] + [
+        "<b>" + constant_cells(n, consts[n].get("value"), consts[n].get("U"))[1] + "</b>" for n in names])
+    return ("<p><b>Uncertainty budget</b> (GUM: type A from the fit, type B from the specimen's "
+            "[uncertainty] inputs; standard uncertainty contributed by each source):</p>" + _table(rows, ["source"] + names))
+
+
 def section_constants(rd: RunData, appendix: list) -> str:
     ident = lookup(rd.results, IDENT_GROUPS)
     params = ident.get("parameters") if isinstance(ident, dict) else None
@@ -230,18 +249,7 @@ def section_constants(rd: RunData, appendix: list) -> str:
         out += "<p><b>Flags and notes:</b></p><ul>" + "".join(
             f"<li>{html.escape(str(f) if not isinstance(f, dict) else f.get('message', str(f)))}</li>"
             for f in list(flags) + warns) + "</ul>"
-    budget = ident.get("uncertainty_budget")
-    if isinstance(budget, dict) and budget:
-        names = list(params)
-        brows = []
-        for src, contrib in budget.items():
-            if isinstance(contrib, dict):
-                brows.append([html.escape(str(src))] + [
-                    constant_cells(n, params[n].get("value"), contrib.get(n))[1] if n in contrib else "—"
-                    for n in names])
-        if brows:
-            out += "<p><b>Uncertainty budget</b> (standard uncertainty from each source):</p>" + _table(
-                brows, ["source"] + names)
+    out += budget_html(ident.get("uncertainty_budget"), params)
     # other data sets identified separately (identification_<data>): appendix
     others = {k[len("identification_"):]: v for k, v in sorted(rd.results.items())
               if k.startswith("identification_") and isinstance(v, dict) and isinstance(v.get("parameters"), dict)}
@@ -304,6 +312,31 @@ def section_picks(feats: dict, ident: Any, appendix: list) -> str:
             out += f"<p>Pairing of the peaks with the FE modes (families): Appendix {_letter(len(appendix))}.</p>"
         else:
             out += "<p>Pairing of the peaks with the FE modes:</p>" + ptab
+    return out
+
+
+def section_damping(feats: dict, appendix: list) -> str:
+    """Damping as a result (issue 16): the modal loss factor per family (median, scatter) and,
+    in an appendix when long, per mode; from the features' ``damping`` section."""
+    d = feats.get("damping") if isinstance(feats, dict) else None
+    if not isinstance(d, dict) or not d.get("modes"):
+        return ""
+    fams = d.get("families") or {}
+    rows = [[html.escape(str(name)), str(len(v.get("modes") or [])), _fmt(scalar(v.get("median_loss_factor"))),
+             _fmt(scalar(v.get("scatter")))] for name, v in fams.items() if isinstance(v, dict)]
+    a = d.get("all") or {}
+    rows.append(["<b>all modes</b>", str(len(d["modes"])), _fmt(scalar(a.get("median_loss_factor"))),
+                 _fmt(scalar(a.get("scatter")))])
+    out = ("<p><b>Damping.</b> Modal loss factor η = 2ζ of the picked peaks, by mode family "
+           "(median and sample standard deviation):</p>" + _table(rows, ["family", "modes", "median η", "scatter"]))
+    mrows = [[f"{scalar(m.get('frequency_hz')):.3f}", html.escape(str(m.get("label") or "—")),
+              _fmt(scalar(m.get("loss_factor")))] for m in d["modes"] if isinstance(m, dict)]
+    tab = _table(mrows, ["frequency (Hz)", "mode (m,n)", "η"])
+    if len(mrows) > SHORT_TABLE:
+        appendix.append(("Loss factor per mode", tab))
+        out += f"<p>The loss factor of each mode: Appendix {_letter(len(appendix))}.</p>"
+    else:
+        out += tab
     return out
 
 
@@ -404,6 +437,7 @@ def build_report(run: str | Path) -> str:
         parts.append(img(png, "spectra with picks") if png else _note("no spectrum"))
     if rd.hammer or (feats.get("modal") or {}).get("frequencies_hz"):
         parts.append(section_picks(feats, ident, appendix))
+        parts.append(section_damping(feats, appendix))
     parts.append("<h2>4. Scalogram</h2>")
     png = fig_scalogram(rd, feats) if rd.wave else None
     parts.append(img(png, "scalogram") if png else _note("no wave shots in this run"))

@@ -50,7 +50,8 @@ from .analysis import Analysis, AnalysisSettings, analyze_store, modal_features,
 from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
                       scalogram)
 from .errors import Cancelled, UserError
-from .features import features_text
+from .damping import damping_summary
+from .features import features_text, specimen_of
 from .io import calibration as calib
 from .io import exporters, importers
 from .rig import Rig, load_rig
@@ -334,13 +335,19 @@ def save_picks(run: str | Path, peaks: Sequence[modal.Peak]) -> dict:
     doc = json.loads(res["features"]["json"])
     ms = (doc.get("modal") or {}).get("mode_shapes")
     modal_sec = modal_table(peaks, ms["points"] if ms else None)
+    out = features_path(run)
     if modal_sec is None:
         doc.pop("modal", None)
+        doc.pop("damping", None)
     else:
         doc["modal"] = modal_sec
+        try:  # the loss factors follow the edited picks (labels need the specimen)
+            spec = specimen_of(doc, out.parent, str(out))
+        except UserError:
+            spec = None
+        doc["damping"] = damping_summary(modal_sec, spec)
     notes = doc.setdefault("analysis", {}).setdefault("notes", [])
     notes.append(f"modal picks edited by hand in the panel ({len(peaks)} peaks)")
-    out = features_path(run)
     text = features_text(doc, str(out))
     out.write_text(text)
     res["features"] = {"json": text}

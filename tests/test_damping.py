@@ -89,3 +89,24 @@ def test_summary_statistics_and_definitions():
                                                                                               ddof=1))}
     assert s["families"][UNLABELLED]["modes"] == [0, 1, 2] and s["labelled_by"] is None
     assert damping_summary({"frequencies_hz": [10.0]}) is None
+
+
+@pytest.mark.slow
+def test_hand_edited_picks_refresh_the_damping_section_and_the_report_shows_it(analysed, tmp_path):
+    import shutil
+
+    from labid import report, services
+    from engine import modal
+
+    run0, feats = analysed
+    run = tmp_path / "run.h5"
+    shutil.copy(run0, run)
+    m = feats["modal"]
+    keep = list(range(0, len(m["frequencies_hz"]), 2))          # drop every other pick by hand
+    peaks = [modal.Peak(frequency_hz=m["frequencies_hz"][i], damping_ratio=m["damping_ratio"][i],
+                        sigma_hz=m["sigma_hz"][i], snr_db=30.0, confidence=1.0, manual=True) for i in keep]
+    doc = services.save_picks(run, peaks)
+    eta = [d["loss_factor"] for d in doc["damping"]["modes"]]
+    assert eta == pytest.approx([2 * m["damping_ratio"][i] for i in keep], rel=1e-15)
+    html = report.build_report(run)
+    assert "Modal loss factor" in html and "median η" in html

@@ -74,7 +74,11 @@ def test_report_shows_stored_results(run_file):
         st.write_group("analysis", {"features": {"json": json.dumps(feats)}})
         ident = {"parameters": {"E1": {"value": 1.30e11, "std": 2.6e9}}, "converged": True,
                  "residual": {"modal_rms_rel": 1e-3, "waves_rms_rel": None},
-                 "blocks": {"modal": {"kind": "modal", "predicted": [119.5]}}}
+                 "blocks": {"modal": {"kind": "modal", "predicted": [119.5]}},
+                 # labid identify's GUM budget (engine.fit.budget.Budget.to_dict): u_c^2 = sum of squares
+                 "uncertainty_budget": {"coverage_factor": 2.0, "constants": {"E1": {
+                     "value": 1.30e11, "u_combined": 3.4e9, "U": 6.8e9, "contributions": {
+                         "type A (fit)": {"u": 2.6e9}, "thickness": {"u": 2.191e9}}}}}}
         st.write_group("identification", {"json": json.dumps(ident)})
         gap = {"gap": {"before": 12.0, "after": 1.1}, "where": ["modal:band:low"], "verdict": "sensor_mass",
                "effects": [{"name": "sensor_mass", "magnitude": 0.004, "unit": "kg", "gap_after": 1.1,
@@ -84,6 +88,7 @@ def test_report_shows_stored_results(run_file):
     # E1 130 GPa, u = 2.6 GPa, U = k u = 5.2 GPa (k = 2) = 4 %, against the specimen file's 136.7 GPa
     assert "130.0 GPa" in html and "2.6 GPa" in html and "5.2 GPa" in html and "4 %" in html
     assert "136.7 GPa" in html
+    assert "Uncertainty budget" in html and "thickness" in html and "2.2 GPa" in html and "6.8 GPa" in html
     assert "Verdict: sensor_mass" in html and "modal:band:low" in html
     assert "120.000" in html           # the pick table
     assert "no group velocities" not in html and "no identification" not in html
