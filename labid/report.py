@@ -115,12 +115,30 @@ def section_setup(rd: RunData) -> str:
                                      "channels", "trigger"]))
         except Exception as e:  # noqa: BLE001
             out.append(_note(f"rig text stored in the run could not be read: {e}"))
+    out.append(section_calibration(rd))
     backends = sorted({r.backend for r in rd.hammer + rd.wave})
     out.append(f"<p>Shots: {rd.counts.get('hammer', 0)} hammer, {rd.counts.get('wave', 0)} wave; "
                f"backend {html.escape(', '.join(backends) or '—')}; "
                f"{html.escape(str(rd.attrs.get('creator', '')))}, file created "
                f"{html.escape(str(rd.attrs.get('file_time', '')))}.</p>")
     return "".join(out)
+
+
+def section_calibration(rd: RunData) -> str:
+    """The sensor calibration the shots were recorded with (issue 16: serial, sensitivity,
+    dates, source: sheet or TEDS) and, first, any channel recorded past its due date."""
+    try:
+        cal = services.run_calibration(rd.path)
+    except Exception as e:  # noqa: BLE001 - a report still gets written
+        return _note(f"the calibration stored in the run could not be read: {e}")
+    chans = cal.get("channels") or {}
+    if not chans:
+        return _note("no calibration record in this run (sensitivities from the rig file)")
+    out = "".join(f"<p class='warn'><b>Calibration overdue:</b> {html.escape(line)}.</p>"
+                  for line in cal.get("overdue") or [])
+    keys = ["serial", "sensitivity", "calibration_date", "due_date", "source"]
+    rows = [[html.escape(ch)] + [html.escape(str(e.get(k, "—"))) for k in keys] for ch, e in chans.items()]
+    return out + "<p>Sensor calibration used:</p>" + _table(rows, ["channel"] + keys)
 
 
 def report_fields(rd: RunData) -> dict:

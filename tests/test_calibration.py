@@ -94,6 +94,10 @@ def test_acquired_shots_carry_the_calibration_and_overdue_is_warned_once(tmp_pat
     assert stored["overdue"] == [f"acc1 (serial SN1) was recorded after its calibration due date {PAST}"]
     with RunStore(run, "r") as st:
         assert st.config_text("calibration_csv").startswith(HEADER)
+    from labid.report import build_report
+    html = build_report(run)       # the report states the calibration and, first, the overdue channel
+    assert f"Calibration overdue:</b> acc1 (serial SN1) was recorded after its calibration due date {PAST}" in html
+    assert "F9" in html and "2025-01-01" in html
     # the same session (process): the panel or the next command does not warn again
     status = services.calibration_status(str(rig))
     assert status["overdue"] and services.warn_calibration(status, write=lambda s: None) == []
@@ -190,3 +194,17 @@ def test_teds_fills_what_the_sheet_lacks_and_a_swapped_sensor_is_reported(tmp_pa
     assert not any("acc2: TEDS sensitivity" in n for n in cal.notes)      # 10.0 vs 9.9 mV/g: within 2 %
     assert any("acc3: TEDS sensitivity" in n and "the sheet's is used" in n for n in cal.notes)
     assert not any("acc3: TEDS serial" in n for n in cal.notes)
+
+
+def test_panel_says_an_overdue_calibration_when_a_run_opens(tmp_path, qtbot):
+    from labid.gui.main_window import MainWindow
+
+    rig = lab(tmp_path, f"acc1,SN7,10.2,mV/g,2024-01-01,{PAST}\nforce,F7,2.3,mV/N,2025-01-01,{FUTURE}\n")
+    run = tmp_path / "run.h5"
+    assert main(["acquire", "--rig", str(rig), "--specimen", "cfrp", "--out", str(run), "--hits", "1",
+                 "--waves", "0", "--quiet"]) == 0
+    w = MainWindow()
+    qtbot.addWidget(w)
+    assert w.open_run(str(run))
+    text, error = w.messages[-1]
+    assert error and "calibration overdue: acc1 (serial SN7)" in text and PAST in text

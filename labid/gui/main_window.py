@@ -181,8 +181,22 @@ class MainWindow(QMainWindow):
         self.run_changed()
         if "tab" in state:
             self.tabs.setCurrentIndex(int(state["tab"]))
-        self.message(f"opened {path}")
+        overdue = self._overdue_calibrations(path)
+        if overdue:  # once per session per channel, as the CLI does
+            self.message(f"opened {path}; calibration overdue: " + "; ".join(overdue), error=True)
+        else:
+            self.message(f"opened {path}")
         return True
+
+    @staticmethod
+    def _overdue_calibrations(path: str) -> list[str]:
+        """Channels of the run recorded past their calibration's due date, not yet warned about."""
+        try:
+            lines = services.run_calibration(path).get("overdue") or []
+        except (UserError, OSError, KeyError, ValueError):
+            return []
+        return services.warn_calibration({"overdue": lines, "sheet": path}, prefix="labid gui",
+                                         write=lambda s: None)
 
     def run_changed(self) -> None:
         """The run file changed (new shots or results): let every view reload."""
