@@ -5,6 +5,7 @@ Public seam: ``RunStore`` (open, append shots, read shots, write/read results),
 ``software_version``. ``h5repair`` mends files left open by a killed writer
 (used by ``RunStore`` itself).
 """
-from .runstore import KINDS, SCHEMA, RunStore, decode_result, software_version
+from .runstore import KINDS, SCHEMA, RunStore, software_version
+from .tree import decode_result
 
 __all__ = ["KINDS", "SCHEMA", "RunStore", "decode_result", "software_version"]
