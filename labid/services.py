@@ -43,6 +43,7 @@ from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentE
 from engine import modal
 from mock_hw.rig import Effects
 
+from . import atomic
 from . import diagnosis as diag
 from . import identification as ident
 from .acquisition import AcquisitionSession, LiveSession
@@ -55,7 +56,7 @@ from .io import calibration as calib
 from .io import exporters, importers
 from .rig import Rig, load_rig
 from .specimen import Specimen, load_specimen, specimen_from_dict
-from .store import KINDS, RunStore, decode_result
+from .store import KINDS, RunStore, WriterLock, decode_result
 
 __all__ = [
     # the run file
@@ -296,12 +297,15 @@ def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
     stored back into their run (``store_for_features``)."""
     settings = settings or AnalysisSettings()
     out = Path(out) if out is not None else features_path(run)
-    with RunStore(run, "r") as st:
-        an = analyze_store(st, settings)
-    if temperature_c is not None and math.isfinite(temperature_c):
-        an.features.setdefault("rig", {}).setdefault("temperature_c", float(temperature_c))
-    an.features.setdefault("analysis", {})["run"] = run_reference(run, out)
-    store_analysis(run, an, out, settings)
+    with RunStore(run, "r") as st:               # a damaged or missing run: one line first
+        pass
+    with WriterLock(run):                        # one writer at a time, refused at once
+        with RunStore(run, "r") as st:
+            an = analyze_store(st, settings)
+        if temperature_c is not None and math.isfinite(temperature_c):
+            an.features.setdefault("rig", {}).setdefault("temperature_c", float(temperature_c))
+        an.features.setdefault("analysis", {})["run"] = run_reference(run, out)
+        store_analysis(run, an, out, settings)
     return an
 
 
@@ -342,7 +346,7 @@ def save_picks(run: str | Path, peaks: Sequence[modal.Peak]) -> dict:
     notes.append(f"modal picks edited by hand in the panel ({len(peaks)} peaks)")
     out = features_path(run)
     text = features_text(doc, str(out))
-    out.write_text(text)
+    atomic.write_text(out, text)
     res["features"] = {"json": text}
     if peaks:
         res["peaks"] = {k: np.array([getattr(p, k) for p in peaks], float)

@@ -65,29 +65,43 @@ class FlagClearedView(io.RawIOBase):
         super().close()
 
 
+def superblock_flags(path: str | Path) -> int | None:
+    """The status flags of a version 2/3 superblock at the start of ``path`` (bit 0: open
+    for writing, bit 2: open for SWMR writing); None for another layout."""
+    with open(path, "rb") as fh:
+        head = fh.read(12)
+    if len(head) < 12 or head[:8] != _SIGNATURE or head[8] not in (2, 3):
+        return None
+    return head[11]
+
+
 def open_read_only(path: str | Path) -> h5py.File:
-    """``h5py.File`` of ``path`` for reading only, never writing: through SWMR (which
-    follows a live writer appending shots, and reads a closed file too), else a plain
-    open, else through ``FlagClearedView`` (flags left by a killed writer). No HDF5
-    file lock is required (the writer lock is ``labid.store.lock``). OSError when none
-    of them can read it."""
-    for kw in ({}, {"locking": False}):  # in-process, the locking flag must match the writer's
-        try:
-            return h5py.File(path, "r", swmr=True, **kw)
-        except OSError:
-            pass
-    try:
-        return h5py.File(path, "r", locking=False)
-    except OSError as first:
-        err = first
-    try:
+    """``h5py.File`` of ``path`` for reading only, never writing. By the superblock's
+    flags: through SWMR when a writer is appending in SWMR mode, through
+    ``FlagClearedView`` when the flags say "open for writing" without SWMR (a killed
+    writer), else plainly. SWMR is used only then: an SWMR reader retries unreadable
+    metadata with pauses, which a damaged file would turn into a long wait. No HDF5
+    file lock is required (the writer lock is ``labid.store.lock``). OSError when the
+    file cannot be read."""
+    flags = superblock_flags(path)
+    if flags is not None and flags & 0x04:
+        last: OSError | None = None
+        for kw in ({}, {"locking": False}):  # in-process, the locking flag must match the writer's
+            try:
+                return h5py.File(path, "r", swmr=True, **kw)
+            except OSError as e:
+                last = e
+        raise last
+    if flags is not None and flags & 0x01:
         view = FlagClearedView(path)
-    except OSError:
-        raise err from None
+        try:
+            f = h5py.File(view, "r", locking=False)
+        except BaseException:
+            view.close()
+            raise
+        f._labid_view = view  # noqa: SLF001 - keeps the file object alive with the h5py file
+        return f
     try:
-        f = h5py.File(view, "r", locking=False)
+        return h5py.File(path, "r")
     except OSError:
-        view.close()
-        raise err from None
-    f._labid_view = view  # noqa: SLF001 - keeps the file object alive with the h5py file
-    return f
+        return h5py.File(path, "r", locking=False)

@@ -63,7 +63,7 @@ from .h5repair import is_consistency_flag_error, repair
 from .lock import WriterLock
 from .readonly import open_read_only
 from .tables import read_records
-from .tree import json_default, read_tree, replace_group, write_tree
+from .tree import decode_result, json_default, read_tree, replace_group, write_tree
 from .validate import check_run, damaged, reading
 
 #: suffixes of the temporary files a writer makes beside the run (removed under the lock)
