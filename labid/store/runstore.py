@@ -289,21 +289,24 @@ class RunStore:
 
     def config_text(self, name: str) -> str:
         """The text ``/config/<name>`` ('' if absent)."""
-        return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
+        with self._reading():
+            return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
 
     def specimen_toml(self) -> str:
-        return _text(self._f["config/specimen_toml"][()]) if "config/specimen_toml" in self._f else ""
+        return self.config_text("specimen_toml")
 
     def rig_toml(self) -> str:
-        return _text(self._f["config/rig_toml"][()]) if "config/rig_toml" in self._f else ""
+        return self.config_text("rig_toml")
 
     def attributes(self) -> dict[str, Any]:
         """The file's root attributes (schema version, NeXus class, software), strings decoded."""
-        return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in self._f.attrs.items()}
+        with self._reading():
+            return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in self._f.attrs.items()}
 
     def result_names(self) -> list[str]:
         """Names of the groups under ``/results`` (``write_group``/``write_result``)."""
-        return list(self._f["results"]) if "results" in self._f else []
+        with self._reading():
+            return list(self._f["results"]) if "results" in self._f else []
 
     # -- shots ---------------------------------------------------------
     def declare(self, kind: str, channels: tuple[ChannelConfig, ...], timing: Timing,
