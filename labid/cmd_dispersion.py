@@ -16,6 +16,7 @@ from engine.safe import SafeError, dispersion_from_model, safe_model
 
 from .cmdutil import add_json_option
 from .errors import UserError
+from .limits import check_fmax
 from .specimen import load_specimen
 
 
@@ -46,6 +47,7 @@ def _check(args) -> None:
 def run(args) -> dict:
     _check(args)
     spec = load_specimen(args.spec)
+    check_fmax(spec.laminate, args.fmax)          # what the SAFE model can hold (issue 15)
     f = np.arange(1, args.n + 1) * args.fmax / args.n
     try:
         model = safe_model(spec.laminate, args.direction_deg, fmax_hz=args.fmax)

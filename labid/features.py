@@ -32,6 +32,8 @@ import numpy as np
 from engine.features import Features, ModalData, RigLayout, WaveData
 
 from .errors import UserError
+from .featurelimits import (LIMITS, MAX_SPECIMEN_BYTES, MODAL_KEYS, RIG_KEYS, SHAPES_KEYS, TOP_KEYS,
+                            WAVE_KEYS, check_keys, mode_index, position, within)
 from .specimen import BUILTIN, Specimen, load_specimen, specimen_from_dict
 
 __all__ = ["validate_features", "read_features", "write_features", "features_text",
@@ -39,18 +41,6 @@ __all__ = ["validate_features", "read_features", "write_features", "features_tex
            "DEFAULT_MODAL_SIGMA_REL", "DEFAULT_WAVE_SIGMA_REL"]
 
 MODE_LABEL = re.compile(r"^(A|S|SH)\d+$")
-TOP_KEYS = {"specimen", "modal", "waves", "rig", "analysis"}
-MODAL_KEYS = {"frequencies_hz", "sigma_hz", "damping_ratio", "confidence", "mode_shapes", "mode_index"}
-SHAPES_KEYS = {"points", "values"}
-WAVE_KEYS = {"mode", "direction_deg", "frequency_hz", "group_velocity_m_s", "sigma_m_s", "dropped"}
-RIG_KEYS = {"temperature_c", "accelerometers", "supports", "wave_path_m", "sensor_length_m", "wavelet"}
-#: (low, high) bounds where values enter (SI): frequencies 1 mHz-100 MHz, velocities up to
-#: 100 km/s, rig paths and positions within 1 km, temperatures -273.15..1000 C,
-#: angles within one turn either way, at most 10,000 values per list
-LIMITS = {"frequency_hz": (1e-3, 1e8), "sigma_hz": (0.0, 1e8), "velocity_m_s": (0.0, 1e5), "length_m": (0.0, 1e3),
-          "temperature_c": (-273.15, 1000.0), "angle_deg": (-360.0, 360.0), "mass_kg": (0.0, 1e3),
-          "n_values": 10_000}
-MAX_SPECIMEN_BYTES = 1 << 20
 #: sigmas assumed when a features file gives none (relative to the value)
 DEFAULT_MODAL_SIGMA_REL = 1e-3
 DEFAULT_WAVE_SIGMA_REL = 1e-2
@@ -73,19 +63,6 @@ def _number(v: Any, key: str, src: str, *, positive=False, nonneg=False, null_ok
     return float(v)
 
 
-def _within(v: float, kind: str, key: str, src: str) -> float:
-    lo, hi = LIMITS[kind]
-    if not (math.isnan(v) or lo <= v <= hi):
-        raise UserError(f"value {v:g}: outside [{lo:g}, {hi:g}] ({kind})", file=src, key=key)
-    return v
-
-
-def _keys(tab: Mapping, allowed: set[str], where: str, src: str) -> None:
-    for k in tab:
-        if k not in allowed:
-            raise UserError(f"unknown key; expected one of {sorted(allowed)}", file=src, key=f"{where}{k}")
-
-
 def _numbers(tab: Mapping, key: str, where: str, src: str, *, n: int | None = None, required=True,
              bound: str | None = None, **kw) -> list[float] | None:
     full = where + key
@@ -103,7 +80,7 @@ def _numbers(tab: Mapping, key: str, where: str, src: str, *, n: int | None = No
     out = [_number(x, f"{full}[{i}]", src, **kw) for i, x in enumerate(v)]
     if bound is not None:
         for i, x in enumerate(out):
-            _within(x, bound, f"{full}[{i}]", src)
+            within(x, bound, f"{full}[{i}]", src)
     return out
 
 
@@ -115,9 +92,12 @@ def _object(v: Any, key: str, src: str) -> Mapping:
 
 def _modal(m: Any, src: str) -> dict:
     m = _object(m, "modal", src)
-    _keys(m, MODAL_KEYS, "modal.", src)
+    check_keys(m, MODAL_KEYS, "modal.", src)
     out = dict(m)
     f = _numbers(m, "frequencies_hz", "modal.", src, positive=True, bound="frequency_hz")
+    if len(f) > LIMITS["n_modes"]:
+        raise UserError(f"{len(f)} frequencies: expected at most {LIMITS['n_modes']}", file=src,
+                        key="modal.frequencies_hz")
     out["frequencies_hz"] = f
     s = _numbers(m, "sigma_hz", "modal.", src, n=len(f), required=False, positive=True, bound="sigma_hz")
     if s is not None:
@@ -126,10 +106,10 @@ def _modal(m: Any, src: str) -> dict:
         if m.get(key) is not None:
             out[key] = _numbers(m, key, "modal.", src, n=len(f), null_ok=True)
     if m.get("mode_index") is not None:
-        out["mode_index"] = _mode_index(m["mode_index"], len(f), src)
+        out["mode_index"] = mode_index(m["mode_index"], len(f), src)
     if m.get("mode_shapes") is not None:
         ms = _object(m["mode_shapes"], "modal.mode_shapes", src)
-        _keys(ms, SHAPES_KEYS, "modal.mode_shapes.", src)
+        check_keys(ms, SHAPES_KEYS, "modal.mode_shapes.", src)
         pts = ms.get("points")
         if not isinstance(pts, list) or not pts:
             raise UserError(f"value {pts!r}: expected a non-empty list of [x, y] points in m",
@@ -154,26 +134,6 @@ def _modal(m: Any, src: str) -> dict:
     return out
 
 
-def _mode_index(v: Any, n: int, src: str) -> list[int | None]:
-    """``modal.mode_index``: one elastic-mode number (int >= 1) or null per peak."""
-    key = "modal.mode_index"
-    if not isinstance(v, list) or len(v) != n:
-        raise UserError(f"value {v!r:.80}: expected a list of {n} mode numbers (int >= 1) or null, "
-                        "one per frequency", file=src, key=key)
-    out: list[int | None] = []
-    for i, x in enumerate(v):
-        if x is None:
-            out.append(None)
-            continue
-        if isinstance(x, float) and x.is_integer():
-            x = int(x)
-        if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= 100_000:
-            raise UserError(f"value {x!r}: expected an elastic-mode number (int >= 1) or null",
-                            file=src, key=f"{key}[{i}]")
-        out.append(x)
-    return out
-
-
 def _waves(w: Any, src: str) -> list[dict]:
     if not isinstance(w, list):
         raise UserError(f"value {w!r}: expected a list of wave curves", file=src, key="waves")
@@ -181,12 +141,12 @@ def _waves(w: Any, src: str) -> list[dict]:
     for i, c in enumerate(w):
         where = f"waves[{i}]."
         c = _object(c, f"waves[{i}]", src)
-        _keys(c, WAVE_KEYS, where, src)
+        check_keys(c, WAVE_KEYS, where, src)
         mode = c.get("mode", "A0")
         if not isinstance(mode, str) or not MODE_LABEL.match(mode):
             raise UserError(f"value {mode!r}: expected a mode label such as 'A0', 'S0', 'SH0', 'A1'",
                             file=src, key=where + "mode")
-        d = _within(_number(c.get("direction_deg", 0.0), where + "direction_deg", src), "angle_deg",
+        d = within(_number(c.get("direction_deg", 0.0), where + "direction_deg", src), "angle_deg",
                     where + "direction_deg", src)
         f = _numbers(c, "frequency_hz", where, src, positive=True, bound="frequency_hz")
         v = _numbers(c, "group_velocity_m_s", where, src, n=len(f), positive=True, null_ok=True,
@@ -202,10 +162,10 @@ def _waves(w: Any, src: str) -> list[dict]:
 
 def _rig(r: Any, src: str) -> dict:
     r = _object(r, "rig", src)
-    _keys(r, RIG_KEYS, "rig.", src)
+    check_keys(r, RIG_KEYS, "rig.", src)
     out = dict(r)
     if "temperature_c" in r:
-        out["temperature_c"] = _within(_number(r["temperature_c"], "rig.temperature_c", src),
+        out["temperature_c"] = within(_number(r["temperature_c"], "rig.temperature_c", src),
                                        "temperature_c", "rig.temperature_c", src)
     for key, fields in (("accelerometers", ("x", "y", "mass_kg")), ("supports", ("x", "y"))):
         if key not in r:
@@ -216,7 +176,7 @@ def _rig(r: Any, src: str) -> dict:
         items = []
         for i, a in enumerate(lst):
             a = _object(a, f"rig.{key}[{i}]", src)
-            _keys(a, set(fields), f"rig.{key}[{i}].", src)
+            check_keys(a, set(fields), f"rig.{key}[{i}].", src)
             item = dict(a)
             for fld in fields:
                 if fld == "mass_kg" and fld not in a:
@@ -224,32 +184,24 @@ def _rig(r: Any, src: str) -> dict:
                 if fld not in a:
                     raise UserError("missing key; expected a number", file=src, key=f"rig.{key}[{i}].{fld}")
                 k = f"rig.{key}[{i}].{fld}"
-                item[fld] = (_within(_number(a[fld], k, src, nonneg=True), "mass_kg", k, src)
-                             if fld == "mass_kg" else _position(a[fld], k, src))
+                item[fld] = (within(_number(a[fld], k, src, nonneg=True), "mass_kg", k, src)
+                             if fld == "mass_kg" else position(a[fld], k, src))
             items.append(item)
         out[key] = items
     if "wave_path_m" in r:
-        out["wave_path_m"] = _within(_number(r["wave_path_m"], "rig.wave_path_m", src, positive=True),
+        out["wave_path_m"] = within(_number(r["wave_path_m"], "rig.wave_path_m", src, positive=True),
                                      "length_m", "rig.wave_path_m", src)
     if "sensor_length_m" in r:
-        out["sensor_length_m"] = _within(_number(r["sensor_length_m"], "rig.sensor_length_m", src, nonneg=True),
+        out["sensor_length_m"] = within(_number(r["sensor_length_m"], "rig.sensor_length_m", src, nonneg=True),
                                          "length_m", "rig.sensor_length_m", src)
     if r.get("wavelet") is not None:
         wl = _object(r["wavelet"], "rig.wavelet", src)
-        _keys(wl, {"bandwidth", "center"}, "rig.wavelet.", src)
+        check_keys(wl, {"bandwidth", "center"}, "rig.wavelet.", src)
         for k in wl:
             v = _number(wl[k], f"rig.wavelet.{k}", src, positive=True)
             if v > 1e3:
                 raise UserError(f"value {v:g}: expected at most 1000", file=src, key=f"rig.wavelet.{k}")
     return out
-
-
-def _position(v: Any, key: str, src: str) -> float:
-    """A coordinate on the plate, m (within +/- 1 km)."""
-    x = _number(v, key, src)
-    if abs(x) > LIMITS["length_m"][1]:
-        raise UserError(f"value {x:g}: outside [-1000, 1000] m", file=src, key=key)
-    return x
 
 
 def validate_features(doc: Any, src: str = "<features>") -> dict:
@@ -258,7 +210,7 @@ def validate_features(doc: Any, src: str = "<features>") -> dict:
     Unknown top-level keys are kept (the contract may be extended).
     """
     doc = _object(doc, "(top level)", src)
-    _keys(doc, TOP_KEYS, "", src)
+    check_keys(doc, TOP_KEYS, "", src)
     out = dict(doc)
     if doc.get("analysis") is not None:
         _object(doc["analysis"], "analysis", src)

@@ -11,6 +11,7 @@ import contextlib
 import io
 import json
 import math
+import shutil
 import signal
 import tomllib
 from dataclasses import dataclass
@@ -18,6 +19,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import h5py
+import numpy as np
 from hypothesis import strategies as st
 
 from labid import cli
@@ -233,3 +236,30 @@ def write_case(path: Path, text: str | bytes) -> Path:
     else:
         path.write_text(text, encoding="utf-8", errors="surrogatepass")
     return path
+
+
+# ------------------------------------------------------------------ damaged run files
+def damaged_copy(base: Path, dst: Path, how: str, seed: int) -> Path:
+    shutil.copyfile(base, dst)
+    rng = np.random.default_rng(seed)
+    if how == "flip":
+        data = bytearray(dst.read_bytes())
+        for i in rng.integers(0, len(data), int(rng.integers(1, 40))):
+            data[i] ^= int(rng.integers(1, 256))
+        dst.write_bytes(bytes(data))
+    elif how == "truncate":
+        data = dst.read_bytes()
+        dst.write_bytes(data[: int(rng.integers(0, len(data)))])
+    else:
+        with h5py.File(dst, "a") as f:
+            g = f["shots/hammer"]
+            name, value = how.split("=", 1)
+            target = f if name == "labid_schema" else g
+            numeric = name in ("rate_hz", "samples", "pretrigger")
+            target.attrs[name] = json.loads(value) if numeric else value   # JSON attrs stay text
+    return dst
+
+
+ATTR_DAMAGE = ["labid_schema=one", "rate_hz=0", "rate_hz=-1", "samples=0", "pretrigger=-5",
+               "channels={bad", "channels=[]", "trigger=[1, 2]", "channels=[{\"name\": 3}]",
+               "samples=99999999999"]

@@ -10,19 +10,16 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
-import h5py
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tests.fuzzcases import (BAD, base_features, base_specimen, classify, garbled_text, mutated, rig_texts,
-                             run_case, toml_text, write_case)
+from tests.fuzzcases import (ATTR_DAMAGE, BAD, base_features, base_specimen, classify, damaged_copy,
+                             garbled_text, mutated, rig_texts, run_case, toml_text, write_case)
 
 ROOT = Path(__file__).resolve().parents[1]
 FAST = settings(deadline=None, derandomize=True, database=None,
@@ -91,32 +88,6 @@ def base_run(work):
     o = run_case(["acquire", "--specimen", "aluminium", "--out", str(run), "--hits", "1", "--waves", "0"])
     assert o.rc == 0, o.err
     return run
-
-
-def damaged_copy(base: Path, dst: Path, how: str, seed: int) -> Path:
-    shutil.copyfile(base, dst)
-    rng = np.random.default_rng(seed)
-    if how == "flip":
-        data = bytearray(dst.read_bytes())
-        for i in rng.integers(0, len(data), int(rng.integers(1, 40))):
-            data[i] ^= int(rng.integers(1, 256))
-        dst.write_bytes(bytes(data))
-    elif how == "truncate":
-        data = dst.read_bytes()
-        dst.write_bytes(data[: int(rng.integers(0, len(data)))])
-    else:
-        with h5py.File(dst, "a") as f:
-            g = f["shots/hammer"]
-            name, value = how.split("=", 1)
-            target = f if name == "labid_schema" else g
-            numeric = name in ("rate_hz", "samples", "pretrigger")
-            target.attrs[name] = json.loads(value) if numeric else value   # JSON attrs stay text
-    return dst
-
-
-ATTR_DAMAGE = ["labid_schema=one", "rate_hz=0", "rate_hz=-1", "samples=0", "pretrigger=-5",
-               "channels={bad", "channels=[]", "trigger=[1, 2]", "channels=[{\"name\": 3}]",
-               "samples=99999999999"]
 
 
 @settings(FAST, max_examples=N_RUN)

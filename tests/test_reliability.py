@@ -496,3 +496,90 @@ def test_a_device_vanishing_mid_read_is_one_line_and_keeps_earlier_shots(tmp_pat
         dev.close()                             # releasing a vanished device does not raise
     with RunStore(p, "r") as st:
         assert st.n_shots("hammer") == 1
+
+
+# ------------------------------------------------------------------ errors at the door (issue 17)
+def _spec(**change) -> dict:
+    import tomllib
+    from importlib import resources
+    doc = tomllib.loads(resources.files("labid.data").joinpath("cfrp_12ply.toml").read_text())
+    for path, value in change.items():
+        *head, last = path.split("__")
+        node = doc
+        for k in head:
+            node = node[k]
+        node[last] = value
+    return doc
+
+
+def test_unknown_specimen_keys_are_named():
+    from labid.specimen import specimen_from_dict
+    for path, key in (("plate__lenght", "plate.lenght"), ("materials__T300__E_1", "materials.T300.E_1"),
+                      ("layup__angle_deg", "layup.angle_deg"), ("thickness", "thickness")):
+        with pytest.raises(UserError) as ei:
+            specimen_from_dict(_spec(**{path: 1.0}), "s.toml")
+        assert ei.value.key == key and "unknown key" in str(ei.value)
+
+
+def test_optional_uncertainty_and_report_tables_are_accepted_and_typed():
+    from labid.specimen import specimen_from_dict
+    s = specimen_from_dict(_spec(uncertainty={"thickness": 2e-5, "density": 5.0, "path_length": 1e-3},
+                                 report={"lab": "L", "revision": 2, "temperature_c": 22.5}), "s.toml")
+    assert s.length == 0.33
+    with pytest.raises(UserError, match="uncertainty.thickness"):
+        specimen_from_dict(_spec(uncertainty={"thickness": -1.0}), "s.toml")
+    with pytest.raises(UserError, match="report.lab"):
+        specimen_from_dict(_spec(report={"lab": ["x"]}), "s.toml")
+
+
+def test_a_modulus_in_gpa_typed_as_pa_is_named():
+    from labid.estimation import parse_assignments
+    from labid.specimen import specimen_from_dict
+    with pytest.raises(UserError, match="GPa typed as Pa") as ei:
+        specimen_from_dict(_spec(materials__T300__E1=136.7), "s.toml")
+    assert ei.value.key == "materials.T300.E1" and "1.367e+11" in str(ei.value)
+    with pytest.raises(UserError, match="GPa typed as Pa"):
+        parse_assignments("E1=136.7")
+    assert parse_assignments("E1=136.7e9,nu12=0.3") == {"E1": 136.7e9, "nu12": 0.3}
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"plate__width": 3.3e8}, "plate.width"), ({"materials__T300__density": 1e30}, "materials.T300.density"),
+    ({"layup__angles_deg": [1e300]}, "layup.angles_deg[0]"), ({"layup__ply_thickness": float("inf")},
+                                                              "layup.ply_thickness"),
+    ({"layup__angles_deg": []}, "layup.angles_deg"), ({"layup__material": ["a"]}, "layup.material")])
+def test_absurd_specimens_are_refused_with_the_key(change, key):
+    from labid.specimen import specimen_from_dict
+    with pytest.raises(UserError) as ei:
+        specimen_from_dict(_spec(**change), "s.toml")
+    assert ei.value.key == key
+
+
+def test_features_mode_index_round_trips_and_is_checked(tmp_path):
+    from labid.features import features_document, parse_features, validate_features
+    doc = {"specimen": "aluminium", "modal": {"frequencies_hz": [20.0, 30.0, 45.0], "mode_index": [1, None, 3]},
+           "waves": [{"mode": "A0", "frequency_hz": [5e3], "group_velocity_m_s": [800.0], "dropped": {"weak": 2}}],
+           "analysis": {"dropped": {"x": 1}, "anything": [1]}}
+    pf = parse_features(doc)
+    assert pf.features.mode_index == (1, None, 3)
+    assert features_document(pf.features, "aluminium")["modal"]["mode_index"] == [1, None, 3]
+    assert parse_features({**doc, "modal": {"frequencies_hz": [20.0]}}).features.mode_index is None
+    for bad in ([0, 1, 2], [1, 2], [1.5, 2, 3], ["1", 2, 3]):
+        with pytest.raises(UserError, match="modal.mode_index"):
+            validate_features({**doc, "modal": {"frequencies_hz": [20.0, 30.0, 45.0], "mode_index": bad}})
+    with pytest.raises(UserError) as ei:
+        validate_features({**doc, "modal": {"frequencies_hz": [20.0], "sigmahz": [1.0]}}, "f.json")
+    assert ei.value.key == "modal.sigmahz"
+
+
+def test_features_specimen_path_only_regular_small_files(tmp_path):
+    from labid.features import MAX_SPECIMEN_BYTES, specimen_of
+    secret = tmp_path / "secret.toml"
+    secret.write_text('password = "hunter2"\n')
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"#" * (MAX_SPECIMEN_BYTES + 1))
+    for path, words in (("/dev/zero", "not a regular file"), (str(tmp_path), "not a regular file"),
+                        (str(big), "at most"), (str(secret), "unknown key")):
+        with pytest.raises(UserError, match=words) as ei:
+            specimen_of({"specimen": path}, tmp_path, "f.json")
+        assert "hunter2" not in str(ei.value)
