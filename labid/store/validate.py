@@ -50,9 +50,9 @@ def check_run(f: h5py.File, src: str) -> None:
             raise _bad(src, key, f"attributes unreadable ({type(e).__name__}: {str(e)[:80]})") from None
         if not (math.isfinite(rate) and rate > 0):
             raise _bad(src, key + ".rate_hz", f"value {rate!r}; expected a positive sample rate in Hz")
-        if not 0 < samples <= 1 << 31 or not 0 <= pre < samples:
+        if not 0 < samples <= 1 << 31 or not 0 <= pre <= 1 << 31:
             raise _bad(src, key + ".samples", f"samples {samples}, pretrigger {pre}; "
-                                               "expected 0 <= pretrigger < samples")
+                                               "expected samples > 0 and pretrigger >= 0")
         if not isinstance(chans, list) or not chans or not all(
                 isinstance(c, dict) and isinstance(c.get("name"), str) and set(c) <= _CHANNEL_FIELDS
                 for c in chans):
