@@ -583,3 +583,15 @@ def test_features_specimen_path_only_regular_small_files(tmp_path):
         with pytest.raises(UserError, match=words) as ei:
             specimen_of({"specimen": path}, tmp_path, "f.json")
         assert "hunter2" not in str(ei.value)
+
+
+def test_stray_temporary_files_of_a_killed_writer_are_removed_by_the_next_writer_only(tmp_path):
+    p = small_run(tmp_path / "run.h5")
+    for suffix in (".repair", ".new", ".results", ".unlocked"):
+        (tmp_path / f"run.h5{suffix}").write_bytes(b"half")
+    with RunStore(p, "r") as st:                   # a reader leaves them (it never writes)
+        assert st.n_shots() == 3
+    assert len(siblings(p)) == 5
+    with RunStore(p) as st:
+        st.append_shot(record(9), "hammer")
+    assert siblings(p) == {"run.h5"}
