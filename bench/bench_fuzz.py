@@ -58,7 +58,11 @@ def main() -> None:
         o = fc.run_case(argv, args.timeout)
         tally.setdefault(family, Counter())[o.kind] += 1
         if o.kind in fc.BAD and len(examples.setdefault(family, [])) < 5:
-            examples[family].append({"argv": o.argv, "kind": o.kind, "err": o.err.strip()[-300:]})
+            crash = o.err.split("traceback in ")[-1].split(" (exit 1)")[0].strip()
+            tb = Path(crash).read_text()[-600:] if crash.endswith(".txt") and Path(crash).exists() else ""
+            inputs = {q.name: q.read_text(errors="replace")[:4000] for q in work.glob("*.toml")}
+            examples[family].append({"argv": o.argv, "kind": o.kind, "err": o.err.strip()[-300:],
+                                     "traceback": tb, "inputs": inputs})
         return o
 
     families = args.families.split(",")
@@ -125,6 +129,8 @@ def main() -> None:
     for fam, ex in examples.items():
         for e in ex[:3]:
             print(f"  {fam}: {e['kind']}: {' '.join(map(str, e['argv']))[:120]} :: {e['err'][-160:]!r}")
+            if e.get("traceback"):
+                print("    " + e["traceback"].replace("\n", "\n    "))
     if args.json:
         Path(args.json).write_text(json.dumps({"tally": {k: dict(v) for k, v in tally.items()},
                                                "examples": examples, "wall_s": wall, "cpu_s": cpu}, indent=1))

@@ -348,7 +348,8 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
 def _device_roles(doc: Mapping[str, Any], src: str) -> set[str]:
     """The roles of the devices a rig document declares (validated again in ``_device``)."""
     devs = _table(doc, "devices", src, required=True)
-    return {t.get("role") for t in devs.values() if isinstance(t, Mapping)}
+    return {t.get("role") for t in devs.values()
+            if isinstance(t, Mapping) and isinstance(t.get("role"), str)}   # others: _device says why
 
 
 def read_rig_text(path: str | Path | None) -> tuple[str, str]:
