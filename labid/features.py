@@ -32,6 +32,7 @@ import numpy as np
 from engine.features import Features, ModalData, RigLayout, WaveData
 
 from .errors import UserError
+from .inputfiles import read_text_file
 from .featurelimits import (LIMITS, MAX_SPECIMEN_BYTES, MODAL_KEYS, RIG_KEYS, SHAPES_KEYS, TOP_KEYS,
                             WAVE_KEYS, check_keys, mode_index, position, within)
 from .specimen import BUILTIN, Specimen, load_specimen, specimen_from_dict
@@ -237,12 +238,7 @@ def validate_features(doc: Any, src: str = "<features>") -> dict:
 def read_features(path: str | Path) -> dict:
     """Read and validate a features JSON file."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise UserError("file not found; expected a features JSON file", file=str(p)) from None
-    except OSError as e:
-        raise UserError(f"cannot read: {e.strerror}", file=str(p)) from None
+    text = read_text_file(p, "a features JSON file")
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as e:

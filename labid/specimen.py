@@ -19,6 +19,7 @@ from typing import Any, Mapping
 from engine.laminate import Laminate, Material, PhysicsError, Ply
 
 from .errors import UserError
+from .inputfiles import read_text_file
 
 BUILTIN = {"cfrp": "cfrp_12ply.toml", "aluminium": "aluminium_3175.toml"}
 
@@ -241,12 +242,7 @@ def load_specimen(path: str | Path) -> Specimen:
         text = resources.files("labid.data").joinpath(BUILTIN[p]).read_text()
         src = f"builtin:{p}"
     else:
-        try:
-            text = Path(p).read_text()
-        except FileNotFoundError:
-            raise UserError("file not found; expected a specimen TOML file", file=p) from None
-        except OSError as e:
-            raise UserError(f"cannot read: {e.strerror}", file=p) from None
+        text = read_text_file(p, "a specimen TOML file")
         src = p
     try:
         doc = tomllib.loads(text)

@@ -595,3 +595,15 @@ def test_stray_temporary_files_of_a_killed_writer_are_removed_by_the_next_writer
     with RunStore(p) as st:
         st.append_shot(record(9), "hammer")
     assert siblings(p) == {"run.h5"}
+
+
+@pytest.mark.parametrize("argv", [["modes", "/dev/zero"], ["identify", "/dev/zero"],
+                                  ["acquire", "--rig", "/dev/zero", "--specimen", "cfrp", "--out", "X"],
+                                  ["modes", "a\0b"]])
+def test_device_files_and_nul_paths_are_refused_without_reading(argv, tmp_path, capsys):
+    """/dev/zero read to the end exhausted the memory (the process was killed)."""
+    argv = [str(tmp_path / "r.h5") if a == "X" else a for a in argv]
+    assert cli.main([*argv, "-q"]) == 2
+    line = one_line(capsys.readouterr().err)
+    assert "not a regular file" in line or "NUL" in line
+    assert not (tmp_path / "r.h5").exists()
