@@ -200,17 +200,19 @@ def stored_features(run: str | Path) -> dict:
 
 def discard_empty_run(path: str | Path) -> bool:
     """Delete ``path`` if it is a run file without any shot (created by a session that
-    recorded nothing); True if deleted. Unreadable files are left alone."""
+    recorded nothing); True if deleted. Unreadable files are left alone, and so is a file
+    another writer holds (it may be a session that has just created it)."""
     path = Path(path)
     if not path.exists():
         return False
     try:
-        with RunStore(path, "r") as s:
-            empty = s.n_shots() == 0
+        with WriterLock(path):
+            with RunStore(path, "r") as s:
+                empty = s.n_shots() == 0
+            if empty:
+                path.unlink()
     except Exception:  # noqa: BLE001 - not ours to judge: keep it
         return False
-    if empty:
-        path.unlink()
     return empty
 
 

@@ -607,3 +607,23 @@ def test_device_files_and_nul_paths_are_refused_without_reading(argv, tmp_path, 
     line = one_line(capsys.readouterr().err)
     assert "not a regular file" in line or "NUL" in line
     assert not (tmp_path / "r.h5").exists()
+
+
+def test_a_refused_acquire_never_deletes_the_new_file_of_the_writer_holding_it(tmp_path, capsys):
+    """Two sessions started on one new file: the second is refused and must not discard
+    the first one's (still empty) run file as its own."""
+    p = tmp_path / "new.h5"
+    proc = child("""
+        from labid.store import RunStore
+        st = RunStore(sys.argv[1])                 # created, no shot yet
+        print("holding", flush=True); sys.stdin.readline()
+    """, str(p))
+    try:
+        assert proc.stdout.readline().strip() == "holding"
+        assert cli.main(["acquire", "--specimen", "cfrp", "--out", str(p), "--hits", "1",
+                         "--waves", "0", "-q"]) == 2
+        assert "one writer at a time" in one_line(capsys.readouterr().err)
+        assert p.exists()
+    finally:
+        proc.kill()
+        proc.wait()
