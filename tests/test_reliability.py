@@ -623,6 +623,9 @@ def test_a_refused_acquire_never_deletes_the_new_file_of_the_writer_holding_it(t
         assert cli.main(["acquire", "--specimen", "cfrp", "--out", str(p), "--hits", "1",
                          "--waves", "0", "-q"]) == 2
         assert "one writer at a time" in one_line(capsys.readouterr().err)
+        # what a refused session that saw no file at its start calls: it must keep the holder's file
+        from labid import services
+        assert services.discard_empty_run(p) is False
         assert p.exists()
     finally:
         proc.kill()
