@@ -105,10 +105,11 @@ class DaqmxError(AcquisitionError):
 # DAQmx status codes with their own one-line explanation (nidaqmx.error_codes.DAQmxErrors)
 _TIMEOUT = -200474                       # OPERATION_TIMED_OUT
 _NOT_FOUND = {-200220, -200170}          # INVALID_DEVICE_ID, PHYSICAL_CHAN_DOES_NOT_EXIST
-_NOT_ACCESSIBLE = {-201003}              # DEV_CANNOT_BE_ACCESSED
+_NOT_ACCESSIBLE = {-201003, -200045}      # DEV_CANNOT_BE_ACCESSED, DEVICE_REMOVED
 _BUSY = {-50103, -200022}                # PAL_RESOURCE_RESERVED, RESOURCE_ALREADY_RESERVED
 _BAD_RATE = {-200332, -200331, -201093, -200660}  # SAMP_RATE_TOO_HIGH/LOW, *_INVALID, *_UNAVAILABLE
 _BAD_VALUE = {-200077}                   # INVALID_ATTRIBUTE_VALUE
+_OVERFLOW = {-200279, -200010}           # SAMPLES_NO_LONGER_AVAILABLE, INPUT_FIFO_OVERFLOW
 
 
 def _load_nidaqmx() -> ModuleType:
@@ -361,6 +362,10 @@ class NiDaqDevice:
         if code in _BAD_RATE:
             return DeviceConfigError(f"{who}: sample rate rejected while {doing}: "
                                      f"{_first_line(exc)} (DAQmx {code})")
+        if code in _OVERFLOW:
+            return DaqmxError(f"{who}: buffer overflow while {doing}: the computer did not read the "
+                              f"samples before the device overwrote them; lower the sample rate or the "
+                              f"number of channels, or close other programs, and retry (DAQmx {code})", code)
         if code in _BAD_VALUE:
             return DeviceConfigError(f"{who}: value rejected while {doing}: "
                                      f"{_first_line(exc)} (DAQmx {code})")

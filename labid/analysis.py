@@ -34,6 +34,7 @@ from engine.safe import ply_stiffness
 from engine.waves_pipeline import WaveSettings, default_wavelet
 from engine.waves_predict import SourceModel
 
+from . import atomic
 from .damping import damping_summary
 from .errors import UserError
 from .features import features_text, validate_features
@@ -385,10 +386,7 @@ def store_analysis(run: str | Path, an: Analysis, out: str | Path,
                    settings: AnalysisSettings = AnalysisSettings()) -> str:
     """Write the features JSON ``out`` and ``/results/analysis`` of ``run``; returns the JSON text."""
     text = features_text(an.features, str(out))
-    try:
-        Path(out).write_text(text)
-    except OSError as e:
-        raise UserError(f"cannot write: {e.strerror}", file=str(out)) from None
+    atomic.write_text(out, text)              # temp + rename: never a half-written JSON
     with RunStore(run, "a") as st:
         st.write_group("analysis", analysis_results(an, text, settings))
     return text

@@ -1,7 +1,13 @@
 """The headless command line: ``labid COMMAND ...`` (CONTRACT section 3).
 
 Exit codes: 0 success, 2 user error (one line on stderr, no traceback),
-1 internal failure, 3 a fit inconsistent with its data under ``--strict``. Each command lives in ``labid/cmd_<name>.py`` and exposes
+1 internal failure, 3 a fit inconsistent with its data under ``--strict``,
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM, handled like Ctrl-C).
+Every failure is mapped here (``failure_line``): a ``UserError``, a storage error
+(disk full, read-only directory, permissions), an engine error on unphysical input
+or an out-of-memory request is one line, exit 2; anything else is an internal
+failure: exit 1, the traceback written to a file and one line saying where
+(``LABID_DEBUG=1`` prints it too). Each command lives in ``labid/cmd_<name>.py`` and exposes
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> dict``.
 The returned dict is the ``--json`` result.
 
@@ -12,8 +18,13 @@ numerical libraries); ``labid --help`` lists the commands from the static
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
+import os
+import signal
 import sys
+import tempfile
+import time
 import traceback
 
 from . import progress, threads
@@ -70,25 +81,99 @@ def build_parser(load: str | None = ALL) -> argparse.ArgumentParser:
     return parser
 
 
+#: OSError numbers that are the user's environment, not a bug: one line, exit 2
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+                            errno.ENOENT, errno.EISDIR, errno.ENOTDIR, errno.ENAMETOOLONG, errno.EFBIG,
+                            errno.EIO, errno.EEXIST, errno.ENXIO, errno.ELOOP, errno.EBUSY, errno.ETXTBSY})
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C (the command unwinds, files are closed)."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler signature
+    raise Terminated()
+
+
+def failure_line(e: BaseException) -> str | None:
+    """The one user-facing line of an exception that is the user's to fix, else None."""
+    if isinstance(e, UserError):
+        return str(e)
+    if isinstance(e, OSError) and e.errno in STORAGE_ERRNOS:
+        where = e.filename if e.filename is not None else ""
+        return f"{where}: {e.strerror or e}" if where else f"{e.strerror or e}"
+    if isinstance(e, MemoryError):
+        return "not enough memory for this input (MemoryError); expected a smaller problem"
+    if isinstance(e, ValueError) and type(e).__module__.startswith("engine."):
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        return f"{msg} ({type(e).__name__}: the input is outside what the model can hold)"
+    return None
+
+
+def crash_report(command: str, exc: BaseException) -> str | None:
+    """Write the traceback of an internal failure to a file; its path (None if unwritable)."""
+    text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+    if os.environ.get("LABID_DEBUG"):
+        sys.stderr.write(text)
+    name = f"labid-crash-{command}-{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.txt"
+    for d in (os.environ.get("LABID_CRASH_DIR"), tempfile.gettempdir()):
+        if not d:
+            continue
+        try:
+            path = os.path.join(d, name)
+            with open(path, "w", encoding="utf-8") as fh:
+                fh.write(f"labid {command}: internal error\nargv: {sys.argv!r}\n\n{text}")
+            return path
+        except OSError:
+            continue
+    if not os.environ.get("LABID_DEBUG"):
+        sys.stderr.write(text)
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
-    args = parser.parse_args(argv)
+    command = argv[0] if argv and argv[0] in COMMANDS else "?"
+    # a usage error is one line and SystemExit(2), --help SystemExit(0) (argparse's way)
+    args = build_parser(command if command != "?" else None).parse_args(argv)
+    previous = None
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:                              # not the main thread: leave signals alone
+        previous = None
+    try:
+        return _run(args)
+    except Terminated:                              # arrived outside the command's own handling
+        return 143
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args) -> int:
     try:
         threads.configure(args.threads)
         progress.set_quiet(args.quiet)
         result = args.func(args)
         if getattr(args, "json", None) and result is not None:
             write_json(result, args.json)
-    except UserError as e:
-        sys.stderr.write(f"labid {args.command}: error: {e}\n")
-        return 2
+    except Terminated:
+        sys.stderr.write(f"labid {args.command}: terminated\n")
+        return 143
     except KeyboardInterrupt:
         sys.stderr.write(f"labid {args.command}: interrupted\n")
         return 130
-    except Exception:  # internal failure: keep the traceback for the bug report
-        traceback.print_exc()
-        sys.stderr.write(f"labid {args.command}: internal error (exit 1)\n")
+    except SystemExit as e:
+        return e.code if isinstance(e.code, int) else 1
+    except Exception as e:  # noqa: BLE001 - the door: every failure is mapped to the contract
+        line = failure_line(e)
+        if line is not None:
+            line = " ".join(line.split())            # one line, whatever the message held
+            sys.stderr.write(f"labid {args.command}: error: {line}\n")
+            return 2
+        where = crash_report(args.command, e)
+        tail = f"; traceback in {where}" if where else ""
+        sys.stderr.write(f"labid {args.command}: internal error ({type(e).__name__}){tail} (exit 1)\n")
         return 1
     # a command may ask for another exit code on success (``identify --strict``: 3)
     return int(getattr(args, "exit_code", 0) or 0)

@@ -76,7 +76,7 @@ def run(args) -> dict:
         summary = services.acquire(out, rig, specimen, backend=args.backend, effects=effects, seed=args.seed,
                                    hits=args.hits, waves=args.waves, total=args.total, progress=progress,
                                    should_stop=lambda: stop["flag"])
-    except UserError:
+    except BaseException:  # any failure (SIGTERM too): never leave an empty run file behind
         if not existed:   # do not leave behind a run file this command created without a shot
             services.discard_empty_run(out)
         raise

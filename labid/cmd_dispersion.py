@@ -17,6 +17,7 @@ from engine.safe import SafeError, dispersion_from_model, safe_model
 from . import progress
 from .cmdutil import add_json_option
 from .errors import UserError
+from .limits import check_fmax
 from .specimen import load_specimen
 from .summary import dispersion_table, eng, stream
 
@@ -48,6 +49,7 @@ def _check(args) -> None:
 def run(args) -> dict:
     _check(args)
     spec = load_specimen(args.spec)
+    check_fmax(spec.laminate, args.fmax)          # what the SAFE model can hold (issue 15)
     f = np.arange(1, args.n + 1) * args.fmax / args.n
     if args.n >= 50 and progress.enabled():     # a few seconds of SAFE solves: say what for
         progress.note(f"labid dispersion: SAFE model of {spec.name}, {args.n} frequencies up to {args.fmax:g} Hz")

@@ -2,8 +2,27 @@
 from __future__ import annotations
 
 import gc
+import os
+import sys
 
 from .errors import UserError
+
+#: Qt platforms that need no display server
+_HEADLESS = ("offscreen", "minimal", "vnc", "eglfs", "linuxfb")
+
+
+def check_display(env=None, platform: str | None = None) -> None:
+    """UserError in one line when the panel has no display to show on (Linux/BSD: neither
+    DISPLAY nor WAYLAND_DISPLAY set and no headless QT_QPA_PLATFORM), with the offscreen hint."""
+    env = os.environ if env is None else env
+    platform = sys.platform if platform is None else platform
+    if platform.startswith(("win", "darwin", "cygwin")):
+        return
+    qpa = env.get("QT_QPA_PLATFORM", "").split(":")[0]
+    if qpa in _HEADLESS or env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"):
+        return
+    raise UserError("no display (DISPLAY and WAYLAND_DISPLAY are unset); expected a desktop session, "
+                    "or QT_QPA_PLATFORM=offscreen for a headless check")
 
 
 def register(sub) -> None:
@@ -13,6 +32,7 @@ def register(sub) -> None:
 
 
 def run(args) -> None:
+    check_display()
     # Qt is an optional dependency: it (and the panel built on it) is imported here, so that
     # a missing PySide6 is one clear line and no other command pays for it
     try:

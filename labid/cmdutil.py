@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from .errors import UserError
+from . import atomic
 from .jsonio import to_jsonable
 
 
@@ -21,12 +21,10 @@ def add_json_option(p: argparse.ArgumentParser) -> None:
 
 
 def write_json(result: dict, path: str) -> None:
-    """Write a result as JSON to ``path``; '-' is standard output. NaN -> null."""
+    """Write a result as JSON to ``path`` (atomically: ``labid.atomic``); '-' is standard
+    output. NaN -> null."""
     text = json.dumps(to_jsonable(result), indent=2, allow_nan=False)
     if path == "-":
         sys.stdout.write(text + "\n")
     else:
-        try:
-            Path(path).write_text(text + "\n")
-        except OSError as e:
-            raise UserError(f"cannot write: {e.strerror}", file=path, key="--json") from None
+        atomic.write_text(Path(path), text + "\n", key="--json")

@@ -29,7 +29,7 @@ from engine.plate import PlateModel
 
 from .errors import UserError
 from .features import parse_features
-from .specimen import Specimen
+from .specimen import MODULI, Specimen, unit_slip
 
 __all__ = ["Problem", "problem_from_features", "default_params", "parse_assignments", "start_values", "run",
            "METHODS"]
@@ -159,6 +159,10 @@ def parse_assignments(text: str | None, option: str = "--start") -> dict[str, fl
             out[name.strip()] = float(val)
         except ValueError:
             raise UserError(f"value {val!r} of {name.strip()}: expected a number (SI units)", key=option) from None
+        if not math.isfinite(out[name.strip()]):
+            raise UserError(f"value {val!r} of {name.strip()}: expected a finite number (SI units)", key=option)
+        if name.strip() in MODULI:                 # GPa typed as Pa, named as such (issue 17)
+            unit_slip(name.strip(), out[name.strip()], option)
     return out
 
 

@@ -5,7 +5,11 @@ diagnosis. Any of ``modal``, ``waves``, ``rig`` may be absent. ``specimen`` is
 a path relative to the JSON file (or a built-in name) or the specimen table
 inline. JSON has no NaN: a velocity that could not be measured is ``null``
 (read back as NaN). Every mistake raises ``UserError`` naming the file, the
-key (``waves[0].frequency_hz[3]``), the value and what was expected.
+key (``waves[0].frequency_hz[3]``), the value and what was expected; so does an
+unknown key (``TOP_KEYS``, ``MODAL_KEYS``, ``WAVE_KEYS``, ``RIG_KEYS``; ``analysis`` is
+free-form). Values are bounded where they enter (``LIMITS``). ``modal.mode_index``
+(optional): the predicted elastic-mode number (>= 1) of each peak, or null.
+A ``specimen`` path must name a regular file of at most ``MAX_SPECIMEN_BYTES``.
 
 :func:`parse_features` is the one conversion of a document into the engine's
 in-memory form, ``engine.features.Features`` (with the specimen it names and
@@ -18,6 +22,7 @@ import json
 import math
 import os
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping
@@ -27,6 +32,9 @@ import numpy as np
 from engine.features import Features, ModalData, RigLayout, WaveData
 
 from .errors import UserError
+from .inputfiles import read_text_file
+from .featurelimits import (LIMITS, MAX_SPECIMEN_BYTES, MODAL_KEYS, RIG_KEYS, SHAPES_KEYS, TOP_KEYS,
+                            WAVE_KEYS, check_keys, mode_index, position, within)
 from .specimen import BUILTIN, Specimen, load_specimen, specimen_from_dict
 
 __all__ = ["validate_features", "read_features", "write_features", "features_text",
@@ -57,7 +65,7 @@ def _number(v: Any, key: str, src: str, *, positive=False, nonneg=False, null_ok
 
 
 def _numbers(tab: Mapping, key: str, where: str, src: str, *, n: int | None = None, required=True,
-             **kw) -> list[float] | None:
+             bound: str | None = None, **kw) -> list[float] | None:
     full = where + key
     if key not in tab:
         if required:
@@ -68,7 +76,13 @@ def _numbers(tab: Mapping, key: str, where: str, src: str, *, n: int | None = No
         raise UserError(f"value {v!r}: expected a list of numbers", file=src, key=full)
     if n is not None and len(v) != n:
         raise UserError(f"{len(v)} values: expected {n}, one per frequency", file=src, key=full)
-    return [_number(x, f"{full}[{i}]", src, **kw) for i, x in enumerate(v)]
+    if len(v) > LIMITS["n_values"]:
+        raise UserError(f"{len(v)} values: expected at most {LIMITS['n_values']}", file=src, key=full)
+    out = [_number(x, f"{full}[{i}]", src, **kw) for i, x in enumerate(v)]
+    if bound is not None:
+        for i, x in enumerate(out):
+            within(x, bound, f"{full}[{i}]", src)
+    return out
 
 
 def _object(v: Any, key: str, src: str) -> Mapping:
@@ -79,14 +93,24 @@ def _object(v: Any, key: str, src: str) -> Mapping:
 
 def _modal(m: Any, src: str) -> dict:
     m = _object(m, "modal", src)
+    check_keys(m, MODAL_KEYS, "modal.", src)
     out = dict(m)
-    f = _numbers(m, "frequencies_hz", "modal.", src, positive=True)
+    f = _numbers(m, "frequencies_hz", "modal.", src, positive=True, bound="frequency_hz")
+    if len(f) > LIMITS["n_modes"]:
+        raise UserError(f"{len(f)} frequencies: expected at most {LIMITS['n_modes']}", file=src,
+                        key="modal.frequencies_hz")
     out["frequencies_hz"] = f
-    s = _numbers(m, "sigma_hz", "modal.", src, n=len(f), required=False, positive=True)
+    s = _numbers(m, "sigma_hz", "modal.", src, n=len(f), required=False, positive=True, bound="sigma_hz")
     if s is not None:
         out["sigma_hz"] = s
+    for key in ("damping_ratio", "confidence"):
+        if m.get(key) is not None:
+            out[key] = _numbers(m, key, "modal.", src, n=len(f), null_ok=True)
+    if m.get("mode_index") is not None:
+        out["mode_index"] = mode_index(m["mode_index"], len(f), src)
     if m.get("mode_shapes") is not None:
         ms = _object(m["mode_shapes"], "modal.mode_shapes", src)
+        check_keys(ms, SHAPES_KEYS, "modal.mode_shapes.", src)
         pts = ms.get("points")
         if not isinstance(pts, list) or not pts:
             raise UserError(f"value {pts!r}: expected a non-empty list of [x, y] points in m",
@@ -118,14 +142,18 @@ def _waves(w: Any, src: str) -> list[dict]:
     for i, c in enumerate(w):
         where = f"waves[{i}]."
         c = _object(c, f"waves[{i}]", src)
+        check_keys(c, WAVE_KEYS, where, src)
         mode = c.get("mode", "A0")
         if not isinstance(mode, str) or not MODE_LABEL.match(mode):
             raise UserError(f"value {mode!r}: expected a mode label such as 'A0', 'S0', 'SH0', 'A1'",
                             file=src, key=where + "mode")
-        d = _number(c.get("direction_deg", 0.0), where + "direction_deg", src)
-        f = _numbers(c, "frequency_hz", where, src, positive=True)
-        v = _numbers(c, "group_velocity_m_s", where, src, n=len(f), positive=True, null_ok=True)
-        s = _numbers(c, "sigma_m_s", where, src, n=len(f), required=False, positive=True, null_ok=True)
+        d = within(_number(c.get("direction_deg", 0.0), where + "direction_deg", src), "angle_deg",
+                    where + "direction_deg", src)
+        f = _numbers(c, "frequency_hz", where, src, positive=True, bound="frequency_hz")
+        v = _numbers(c, "group_velocity_m_s", where, src, n=len(f), positive=True, null_ok=True,
+                     bound="velocity_m_s")
+        s = _numbers(c, "sigma_m_s", where, src, n=len(f), required=False, positive=True, null_ok=True,
+                     bound="velocity_m_s")
         item = {**c, "mode": mode, "direction_deg": d, "frequency_hz": f, "group_velocity_m_s": v}
         if s is not None:
             item["sigma_m_s"] = s
@@ -135,9 +163,11 @@ def _waves(w: Any, src: str) -> list[dict]:
 
 def _rig(r: Any, src: str) -> dict:
     r = _object(r, "rig", src)
+    check_keys(r, RIG_KEYS, "rig.", src)
     out = dict(r)
     if "temperature_c" in r:
-        out["temperature_c"] = _number(r["temperature_c"], "rig.temperature_c", src)
+        out["temperature_c"] = within(_number(r["temperature_c"], "rig.temperature_c", src),
+                                       "temperature_c", "rig.temperature_c", src)
     for key, fields in (("accelerometers", ("x", "y", "mass_kg")), ("supports", ("x", "y"))):
         if key not in r:
             continue
@@ -147,34 +177,52 @@ def _rig(r: Any, src: str) -> dict:
         items = []
         for i, a in enumerate(lst):
             a = _object(a, f"rig.{key}[{i}]", src)
+            check_keys(a, set(fields), f"rig.{key}[{i}].", src)
             item = dict(a)
             for fld in fields:
                 if fld == "mass_kg" and fld not in a:
                     continue
                 if fld not in a:
                     raise UserError("missing key; expected a number", file=src, key=f"rig.{key}[{i}].{fld}")
-                item[fld] = _number(a[fld], f"rig.{key}[{i}].{fld}", src, nonneg=(fld == "mass_kg"))
+                k = f"rig.{key}[{i}].{fld}"
+                item[fld] = (within(_number(a[fld], k, src, nonneg=True), "mass_kg", k, src)
+                             if fld == "mass_kg" else position(a[fld], k, src))
             items.append(item)
         out[key] = items
     if "wave_path_m" in r:
-        out["wave_path_m"] = _number(r["wave_path_m"], "rig.wave_path_m", src, positive=True)
+        out["wave_path_m"] = within(_number(r["wave_path_m"], "rig.wave_path_m", src, positive=True),
+                                     "length_m", "rig.wave_path_m", src)
     if "sensor_length_m" in r:
-        out["sensor_length_m"] = _number(r["sensor_length_m"], "rig.sensor_length_m", src, nonneg=True)
+        out["sensor_length_m"] = within(_number(r["sensor_length_m"], "rig.sensor_length_m", src, nonneg=True),
+                                         "length_m", "rig.sensor_length_m", src)
+    if r.get("wavelet") is not None:
+        wl = _object(r["wavelet"], "rig.wavelet", src)
+        check_keys(wl, {"bandwidth", "center"}, "rig.wavelet.", src)
+        for k in wl:
+            v = _number(wl[k], f"rig.wavelet.{k}", src, positive=True)
+            if v > 1e3:
+                raise UserError(f"value {v:g}: expected at most 1000", file=src, key=f"rig.wavelet.{k}")
     return out
 
 
 def validate_features(doc: Any, src: str = "<features>") -> dict:
     """A checked copy of a features document (numbers as floats, null velocities as NaN).
 
-    Unknown top-level keys are kept (the contract may be extended).
+    An unknown key is an error naming it (labid.featurelimits holds the keys).
     """
     doc = _object(doc, "(top level)", src)
+    check_keys(doc, TOP_KEYS, "", src)
     out = dict(doc)
+    if doc.get("analysis") is not None:
+        _object(doc["analysis"], "analysis", src)
+    if doc.get("damping") is not None:
+        _object(doc["damping"], "damping", src)
     if "specimen" in doc and doc["specimen"] is not None:
         s = doc["specimen"]
         if isinstance(s, str):
-            if not s:
-                raise UserError("empty path; expected a specimen file path or table", file=src, key="specimen")
+            if not s or "\0" in s or len(s) > 4096:
+                raise UserError("expected a specimen file path (no NUL byte, at most 4096 characters) "
+                                "or table", file=src, key="specimen")
         elif isinstance(s, Mapping):
             specimen_from_dict(s, f"{src}#specimen")  # validates, raises UserError
         else:
@@ -192,12 +240,7 @@ def validate_features(doc: Any, src: str = "<features>") -> dict:
 def read_features(path: str | Path) -> dict:
     """Read and validate a features JSON file."""
     p = Path(path)
-    try:
-        text = p.read_text()
-    except FileNotFoundError:
-        raise UserError("file not found; expected a features JSON file", file=str(p)) from None
-    except OSError as e:
-        raise UserError(f"cannot read: {e.strerror}", file=str(p)) from None
+    text = read_text_file(p, "a features JSON file")
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as e:
@@ -216,6 +259,16 @@ def specimen_of(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>
     full = p if p.is_absolute() else Path(base_dir) / p
     if s in BUILTIN and not full.exists():
         return load_specimen(s)
+    try:
+        st = full.stat()
+    except OSError as e:
+        raise UserError(f"cannot read the specimen file ({e.strerror}); expected a specimen TOML file",
+                        file=src, key="specimen") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError("not a regular file; expected a specimen TOML file", file=src, key="specimen")
+    if st.st_size > MAX_SPECIMEN_BYTES:
+        raise UserError(f"{st.st_size} bytes: expected a specimen TOML file of at most {MAX_SPECIMEN_BYTES}",
+                        file=src, key="specimen")
     return load_specimen(full)
 
 
@@ -352,8 +405,9 @@ def parse_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<featur
         waves.append(WaveData(w["mode"], float(w["direction_deg"]), np.asarray(w["frequency_hz"], dtype=float),
                               cg, sig))
     rig = _rig_layout(doc.get("rig") or {}, src)
+    mi = (m or {}).get("mode_index")
     feats = Features(spec.laminate, spec.length, spec.width, rig, modal, tuple(waves),
-                     specimen_name=spec.name)
+                     specimen_name=spec.name, mode_index=tuple(mi) if mi is not None else None)
     return ParsedFeatures(feats, spec, tuple(notes))
 
 
@@ -366,6 +420,8 @@ def features_document(features: Features, specimen: Any) -> dict:
     if md is not None:
         doc["modal"] = {"frequencies_hz": np.asarray(md.frequency_hz, float).tolist(),
                         "sigma_hz": np.broadcast_to(md.sigma_hz, np.shape(md.frequency_hz)).tolist()}
+        if features.mode_index is not None:
+            doc["modal"]["mode_index"] = list(features.mode_index)
         if md.shapes is not None:
             doc["modal"]["mode_shapes"] = {"points": np.asarray(md.points, float).tolist(),
                                            "values": np.asarray(md.shapes, float).tolist()}

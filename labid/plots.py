@@ -15,6 +15,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from . import atomic
+from .errors import UserError
+
 __all__ = ["plot_multi_start", "plot_gap"]
 
 
@@ -51,7 +54,7 @@ def plot_multi_start(results: Sequence[Mapping], names: Sequence[str], path: str
         fig.suptitle(title)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path)
     plt.close(fig)
 
 
@@ -88,5 +91,16 @@ def plot_gap(result: Mapping, path: str | Path) -> None:
     a2.set_xlabel("chi^2 per feature (1 = noise); red: significant")
     a2.tick_params(axis="y", labelsize=6)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path)
     plt.close(fig)
+
+
+def save_figure(fig, path: str | Path) -> None:
+    """``fig.savefig`` atomically (``labid.atomic``); the format from the suffix (PNG by default)."""
+    path = Path(path)
+    fmt = path.suffix[1:].lower() or "png"
+    with atomic.replacing(path, key="--plot") as tmp:
+        try:
+            fig.savefig(tmp, dpi=110, format=fmt)
+        except ValueError as e:                      # an unknown format
+            raise UserError(f"cannot write a figure ({e})", file=str(path), key="--plot") from None

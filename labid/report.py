@@ -30,7 +30,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from . import services
+from . import atomic, services
 from .errors import UserError
 from .report_figures import fig_dispersion, fig_gap, fig_scalogram, fig_spectrum, img, scalar
 from .rig import rig_from_text
@@ -476,8 +476,5 @@ def write_report(run: str | Path, out: str | Path | None = None) -> str:
     """Write the report of ``run`` to ``out`` (default: RUN.html next to it); returns the path."""
     out = Path(out) if out else Path(run).with_suffix(".html")
     text = build_report(run)
-    try:
-        out.write_text(text)
-    except OSError as e:
-        raise UserError(f"cannot write: {e.strerror}", file=str(out), key="--out") from None
+    atomic.write_text(out, text, key="--out")    # temp + rename (issue 15)
     return str(out)

@@ -16,6 +16,7 @@ from typing import Any, Mapping
 from drivers.protocol import ChannelConfig, Timing, Trigger
 
 from .errors import UserError
+from .inputfiles import read_text_file
 from .rigtypes import (BUILTIN, ROLES, KINDS, COUPLINGS, FILTERS, DEFAULT_MAX_RATE_HZ, FACES, SOURCE_KINDS, WINDOWS,
                         PAIRS, AntiAlias, DeviceSpec, WaveSensor, Burst, Source, SimSettings,
                         Rig)
@@ -348,7 +349,8 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
 def _device_roles(doc: Mapping[str, Any], src: str) -> set[str]:
     """The roles of the devices a rig document declares (validated again in ``_device``)."""
     devs = _table(doc, "devices", src, required=True)
-    return {t.get("role") for t in devs.values() if isinstance(t, Mapping)}
+    return {t.get("role") for t in devs.values()
+            if isinstance(t, Mapping) and isinstance(t.get("role"), str)}   # others: _device says why
 
 
 def read_rig_text(path: str | Path | None) -> tuple[str, str]:
@@ -356,12 +358,7 @@ def read_rig_text(path: str | Path | None) -> tuple[str, str]:
     p = "default" if path is None else str(path)
     if p in BUILTIN:
         return resources.files("labid.data").joinpath(BUILTIN[p]).read_text(), f"builtin:{p}"
-    try:
-        return Path(p).read_text(), p
-    except FileNotFoundError:
-        raise UserError("file not found; expected a rig TOML file (or 'default')", file=p) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise UserError(f"cannot read: {getattr(e, 'strerror', None) or e}", file=p) from None
+    return read_text_file(p, "a rig TOML file (or 'default')"), p
 
 
 def rig_from_text(text: str, src: str = "<inline>") -> Rig:

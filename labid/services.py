@@ -43,6 +43,7 @@ from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentE
 from engine import modal
 from mock_hw.rig import Effects
 
+from . import atomic
 from . import diagnosis as diag
 from . import identification as ident
 from .acquisition import AcquisitionSession, LiveSession
@@ -56,7 +57,7 @@ from .io import calibration as calib
 from .io import exporters, importers
 from .rig import Rig, load_rig
 from .specimen import Specimen, load_specimen, specimen_from_dict
-from .store import KINDS, RunStore, decode_result
+from .store import KINDS, RunStore, WriterLock, decode_result
 
 __all__ = [
     # the run file
@@ -200,17 +201,19 @@ def stored_features(run: str | Path) -> dict:
 
 def discard_empty_run(path: str | Path) -> bool:
     """Delete ``path`` if it is a run file without any shot (created by a session that
-    recorded nothing); True if deleted. Unreadable files are left alone."""
+    recorded nothing); True if deleted. Unreadable files are left alone, and so is a file
+    another writer holds (it may be a session that has just created it)."""
     path = Path(path)
     if not path.exists():
         return False
     try:
-        with RunStore(path, "r") as s:
-            empty = s.n_shots() == 0
+        with WriterLock(path):
+            with RunStore(path, "r") as s:
+                empty = s.n_shots() == 0
+            if empty:
+                path.unlink()
     except Exception:  # noqa: BLE001 - not ours to judge: keep it
         return False
-    if empty:
-        path.unlink()
     return empty
 
 
@@ -297,12 +300,15 @@ def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
     stored back into their run (``store_for_features``)."""
     settings = settings or AnalysisSettings()
     out = Path(out) if out is not None else features_path(run)
-    with RunStore(run, "r") as st:
-        an = analyze_store(st, settings)
-    if temperature_c is not None and math.isfinite(temperature_c):
-        an.features.setdefault("rig", {}).setdefault("temperature_c", float(temperature_c))
-    an.features.setdefault("analysis", {})["run"] = run_reference(run, out)
-    store_analysis(run, an, out, settings)
+    with RunStore(run, "r") as st:               # a damaged or missing run: one line first
+        pass
+    with WriterLock(run):                        # one writer at a time, refused at once
+        with RunStore(run, "r") as st:
+            an = analyze_store(st, settings)
+        if temperature_c is not None and math.isfinite(temperature_c):
+            an.features.setdefault("rig", {}).setdefault("temperature_c", float(temperature_c))
+        an.features.setdefault("analysis", {})["run"] = run_reference(run, out)
+        store_analysis(run, an, out, settings)
     return an
 
 
@@ -349,7 +355,7 @@ def save_picks(run: str | Path, peaks: Sequence[modal.Peak]) -> dict:
     notes = doc.setdefault("analysis", {}).setdefault("notes", [])
     notes.append(f"modal picks edited by hand in the panel ({len(peaks)} peaks)")
     text = features_text(doc, str(out))
-    out.write_text(text)
+    atomic.write_text(out, text)
     res["features"] = {"json": text}
     if peaks:
         res["peaks"] = {k: np.array([getattr(p, k) for p in peaks], float)

@@ -2,9 +2,12 @@
 
 Public seam: ``RunStore`` (open, append shots, read shots, write/read results),
 ``decode_result`` (a results group -> its JSON copy), ``SCHEMA``, ``KINDS``,
-``software_version``. ``h5repair`` mends files left open by a killed writer
-(used by ``RunStore`` itself).
+``software_version``, ``WriterLock`` (one writer at a time: ``RUN.h5.lock``).
+``h5repair`` mends files left open by a killed writer (used by ``RunStore``
+itself); ``readonly`` is the read path that never writes.
 """
-from .runstore import KINDS, SCHEMA, RunStore, decode_result, software_version
+from .lock import WriterLock
+from .runstore import KINDS, SCHEMA, RunStore, software_version
+from .tree import decode_result
 
-__all__ = ["KINDS", "SCHEMA", "RunStore", "decode_result", "software_version"]
+__all__ = ["KINDS", "SCHEMA", "RunStore", "WriterLock", "decode_result", "software_version"]

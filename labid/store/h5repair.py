@@ -108,18 +108,28 @@ def open_flagged(path: Path) -> tuple[h5py.File, Path | None]:
         return h5py.File(tmp, "r"), tmp
 
 
-def repair(path: Path) -> None:
-    """Rewrite a file left open by a killed writer into a clean copy."""
+def repair(path: Path, opener=None) -> None:
+    """Rewrite a file left open by a killed writer into a clean copy (``RUN.h5.repair``,
+    renamed over the run once complete; removed on failure). ``opener(path) -> h5py.File``
+    reads the flagged file (default ``open_flagged``); the caller holds the writer lock."""
     tmp = path.with_name(path.name + ".repair")
-    src, unlocked = open_flagged(path)
+    unlocked = None
+    if opener is None:
+        src, unlocked = open_flagged(path)
+    else:
+        src = opener(path)
     try:
         with h5py.File(tmp, "w", libver="latest") as dst:
             copy_attrs(src, dst)
             for name in src:
                 src.copy(src[name], dst, name)
             dst.flush()
+        os.replace(tmp, path)
     finally:
+        view = getattr(src, "_labid_view", None)
         src.close()
+        if view is not None:
+            view.close()
         if unlocked:
             unlocked.unlink()
-    os.replace(tmp, path)
+        tmp.unlink(missing_ok=True)

@@ -1,5 +1,4 @@
 """The run store: one HDF5 file per test session (h5py), crash-safe shot by shot.
-(Just over 500 lines, most of it this schema and the crash-safety notes; issue 15 splits the store.)
 
 Schema ``labid_schema = 1`` (NeXus-style ``NX_class`` and ``units`` attributes)::
 
@@ -25,13 +24,22 @@ Schema ``labid_schema = 1`` (NeXus-style ``NX_class`` and ``units`` attributes):
 Crash safety: shots are written in HDF5 SWMR mode (``libver='latest'``), whose
 ordered metadata writes keep the file readable whatever the moment the writer
 dies. A shot counts only once its row of ``committed`` is written and flushed;
-rows past it (a shot cut short) are dropped on reopening. A file left with the
-"open for writing" flags by a killed writer is repaired on the next ``"a"``
-open by copying it (read through SWMR) to a fresh file, atomically renamed over
-the old one; a ``"r"`` open reads it through SWMR without touching it. A writer
-killed outside SWMR mode (creating a table, writing results: not crash-safe,
-but flushed after each change) leaves the flags without SWMR; such a file is
-read from a copy whose superblock flags are cleared (checksum recomputed).
+rows past it (a shot cut short) are dropped on reopening.
+
+One writer at a time (issue 15): an ``"a"`` open takes the advisory lock
+``RUN.h5.lock`` (``labid.store.lock``) and a second writer is refused in one line
+naming the holder. Results (``write_group``) are written into a copy of the file
+that replaces it atomically (``os.replace``) once complete and synced: a kill at
+any moment leaves either the old file or the new one, never a half-written
+results group. Under the lock, stale temporary files of a killed writer
+(``.new``, ``.repair``, ``.results``, ``.unlocked``) are removed.
+
+A ``"r"`` open never writes, repairs or copies (``labid.store.readonly``): it
+reads plainly, through SWMR (a live writer), or through a view with the flags a
+killed writer left seen cleared. A file left flagged is repaired on the next
+``"a"`` open (copied into a fresh file, atomically renamed over the old one).
+A damaged file (not HDF5, bit flips, missing groups, bad attributes) is a
+``UserError`` naming the file and what is wrong.
 """
 from __future__ import annotations
 
@@ -51,7 +59,15 @@ from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
 from ..errors import UserError
 from ..jsonio import to_jsonable
-from .h5repair import is_consistency_flag_error, open_flagged, repair
+from .h5repair import is_consistency_flag_error, repair
+from .lock import WriterLock
+from .readonly import open_read_only
+from .tables import read_records
+from .tree import decode_result, json_default, read_tree, replace_group, write_tree
+from .validate import check_run, damaged, reading
+
+#: suffixes of the temporary files a writer makes beside the run (removed under the lock)
+TEMP_SUFFIXES = (".new", ".repair", ".results", ".unlocked")
 
 SCHEMA = 1
 KINDS = ("hammer", "wave")
@@ -89,31 +105,61 @@ class RunStore:
         self.mode = mode
         self._swmr = False
         self._live = False          # read-only view of a file a writer may still be appending to
-        self._unlocked: Path | None = None
+        self._lock: WriterLock | None = None
         self._f: h5py.File | None = None
         if mode == "r":
             if not self.path.exists():
                 raise UserError("file not found; expected a run file (HDF5)", file=str(self.path))
+            if not self.path.is_file():
+                raise UserError("not a regular file; expected a run file (HDF5)", file=str(self.path))
             try:
-                self._f = h5py.File(self.path, "r")
-            except OSError as e:
-                if not is_consistency_flag_error(e):
-                    raise UserError(f"not a readable HDF5 run file ({e})", file=str(self.path)) from None
-                self._f, self._unlocked = open_flagged(self.path)
-                self._live = self._unlocked is None
-            self._check_schema()
+                self._f = open_read_only(self.path)
+                self._live = bool(self._f.swmr_mode)
+                self._check_schema()
+                check_run(self._f, str(self.path))
+            except Exception as e:
+                self.close()
+                if isinstance(e, UserError):
+                    raise
+                raise damaged(self.path, e) from None
             return
+        if self.path.exists() and not self.path.is_file():
+            raise UserError("not a regular file; expected a run file (HDF5)", file=str(self.path))
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise UserError(f"cannot create the directory ({e.strerror})", file=str(self.path.parent)) from None
+        self._lock = WriterLock(self.path)
+        try:
+            self._open_writer()
+        except BaseException as e:
+            self.close()
+            if isinstance(e, (UserError, KeyboardInterrupt, SystemExit)) or (
+                    isinstance(e, OSError) and e.errno is not None):
+                raise
+            raise damaged(self.path, e) from None
+
+    def _open_writer(self) -> None:
+        self._remove_stale()
         if self.path.exists():
             self._f = self._open_append()
             self._check_schema()
+            check_run(self._f, str(self.path))
             self._drop_uncommitted()
         else:                      # created complete under a temporary name, then renamed
-            self.path.parent.mkdir(parents=True, exist_ok=True)
             tmp = self.path.with_name(self.path.name + ".new")
-            with h5py.File(tmp, "w", libver="latest") as f:
-                self._init(f, self.path.name)
-            os.replace(tmp, self.path)
-            self._f = h5py.File(self.path, "a", libver="latest")
+            try:
+                with h5py.File(tmp, "w", libver="latest") as f:
+                    self._init(f, self.path.name)
+                os.replace(tmp, self.path)
+            finally:
+                tmp.unlink(missing_ok=True)
+            self._f = h5py.File(self.path, "a", libver="latest", locking=False)
+
+    def _remove_stale(self) -> None:
+        """Temporary files a killed writer left beside the run (we hold the lock: none is live)."""
+        for suffix in TEMP_SUFFIXES:
+            self.path.with_name(self.path.name + suffix).unlink(missing_ok=True)
 
     @staticmethod
     def _init(f: h5py.File, name: str) -> None:
@@ -133,16 +179,22 @@ class RunStore:
     # -- opening -------------------------------------------------------
     def _open_append(self) -> h5py.File:
         try:
-            return h5py.File(self.path, "a", libver="latest")
+            return h5py.File(self.path, "a", libver="latest", locking=False)
         except OSError as e:
+            if e.errno is not None:            # permissions, read-only file system...
+                raise
             if not is_consistency_flag_error(e):
-                raise UserError(f"cannot open for appending ({e})", file=str(self.path)) from None
-        repair(self.path)
-        return h5py.File(self.path, "a", libver="latest")
+                raise damaged(self.path, e) from None
+        repair(self.path, open_read_only)
+        return h5py.File(self.path, "a", libver="latest", locking=False)
 
     def _check_schema(self) -> None:
         v = self._f.attrs.get("labid_schema")
-        if v is None or int(v) > SCHEMA:
+        try:
+            ok = v is not None and 0 < int(v) <= SCHEMA
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
             raise UserError(f"labid_schema {v!r}: expected a labid run file with schema <= {SCHEMA}",
                             file=str(self.path))
 
@@ -163,7 +215,7 @@ class RunStore:
         if self._swmr:
             self._handles = (None,)
             self._f.close()
-            self._f = h5py.File(self.path, "a", libver="latest")
+            self._f = h5py.File(self.path, "a", libver="latest", locking=False)
             self._swmr = False
         return self._f
 
@@ -176,14 +228,21 @@ class RunStore:
 
     def close(self) -> None:
         self._handles = (None,)
-        if self._f is not None:
-            if self.mode == "a":
-                self._f.flush()
-            self._f.close()
-            self._f = None
-        if self._unlocked is not None:
-            self._unlocked.unlink(missing_ok=True)
-            self._unlocked = None
+        try:
+            if self._f is not None:
+                f, self._f = self._f, None
+                try:
+                    if self.mode == "a" and f.id.valid:
+                        f.flush()
+                finally:
+                    view = getattr(f, "_labid_view", None)
+                    f.close()
+                    if view is not None:
+                        view.close()
+        finally:
+            if self._lock is not None:
+                self._lock.release()
+                self._lock = None
 
     def __enter__(self) -> "RunStore":
         return self
@@ -218,7 +277,7 @@ class RunStore:
                 parsed = tomllib.loads(text)
             except tomllib.TOMLDecodeError:
                 parsed = {}
-            _write_tree(cfg.create_group(key), parsed)
+            write_tree(cfg.create_group(key), parsed)
         f.flush()
 
     def write_config_text(self, name: str, text: str) -> None:
@@ -230,21 +289,24 @@ class RunStore:
 
     def config_text(self, name: str) -> str:
         """The text ``/config/<name>`` ('' if absent)."""
-        return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
+        with self._reading():
+            return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
 
     def specimen_toml(self) -> str:
-        return _text(self._f["config/specimen_toml"][()]) if "config/specimen_toml" in self._f else ""
+        return self.config_text("specimen_toml")
 
     def rig_toml(self) -> str:
-        return _text(self._f["config/rig_toml"][()]) if "config/rig_toml" in self._f else ""
+        return self.config_text("rig_toml")
 
     def attributes(self) -> dict[str, Any]:
         """The file's root attributes (schema version, NeXus class, software), strings decoded."""
-        return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in self._f.attrs.items()}
+        with self._reading():
+            return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in self._f.attrs.items()}
 
     def result_names(self) -> list[str]:
         """Names of the groups under ``/results`` (``write_group``/``write_result``)."""
-        return list(self._f["results"]) if "results" in self._f else []
+        with self._reading():
+            return list(self._f["results"]) if "results" in self._f else []
 
     # -- shots ---------------------------------------------------------
     def declare(self, kind: str, channels: tuple[ChannelConfig, ...], timing: Timing,
@@ -314,7 +376,7 @@ class RunStore:
         if cols != names:
             raise UserError(f"record channels {names} differ from the recorded table",
                             file=str(self.path), key=f"shots/{kind}")
-        meta = json.dumps(record.meta, default=_json_default).encode()
+        meta = json.dumps(record.meta, default=json_default).encode()
         if len(meta) > _META_LEN:
             raise ValueError(f"record meta too long ({len(meta)} > {_META_LEN} bytes)")
         row = {c: np.asarray(record.data[c], dtype=g[c].dtype) for c in names}
@@ -355,12 +417,24 @@ class RunStore:
                     ds.refresh()
 
     def n_shots(self, kind: str | None = None) -> int:
+        with self._reading():
+            return self._n_shots(kind)
+
+    def _reading(self):
+        """Context: HDF5 errors while reading (bit flips, bad chunks) -> UserError naming the file."""
+        return reading(self.path)
+
+    def _n_shots(self, kind: str | None = None) -> int:
         self._refresh()
         kinds = [kind] if kind else list(self._f["shots"])
         return sum(self._f["shots"][k]["committed"].shape[0] for k in kinds if k in self._f["shots"])
 
     def metas(self, kind: str) -> list[dict]:
         """The ``meta`` dict of every committed shot of ``kind`` (no sample data read)."""
+        with self._reading():
+            return self._metas(kind)
+
+    def _metas(self, kind: str) -> list[dict]:
         self._refresh()
         if kind not in self._f["shots"]:
             return []
@@ -375,44 +449,31 @@ class RunStore:
         ``meta`` carries ``kind``, ``shot`` (name), ``software_version`` besides
         what the device recorded.
         """
+        with self._reading():
+            return self._shots(kind, limit)
+
+    def _shots(self, kind: str | None, limit: int | None) -> list[Record]:
         self._refresh()
-        out: list[Record] = []
-        kinds = [kind] if kind else sorted(self._f["shots"])
-        for k in kinds:
-            if k not in self._f["shots"]:
-                continue
-            g = self._f["shots"][k]
-            chans = tuple(ChannelConfig(**d) for d in json.loads(g.attrs["channels"]))
-            timing = Timing(float(g.attrs["rate_hz"]), int(g.attrs["samples"]), int(g.attrs["pretrigger"]))
-            trig = json.loads(g.attrs["trigger"])
-            trigger = Trigger(**trig) if trig else None
-            n = g["committed"].shape[0]
-            if limit is not None:
-                n = min(n, max(0, int(limit)))
-            if n == 0:
-                continue
-            data = {c.name: np.asarray(g[c.name][:n], dtype="f8") for c in chans}
-            ts, ov = g["timestamp"][:n], g["overload"][:n]
-            be, sv, me = g["backend"][:n], g["software_version"][:n], g["meta"][:n]
-            for i in range(n):
-                meta = json.loads(me[i].decode() or "{}")
-                meta.update(kind=k, shot=f"{k}_{i + 1:04d}", software_version=sv[i].decode())
-                out.append(Record(data={c.name: data[c.name][i] for c in chans}, channels=chans,
-                                  timing=timing, trigger=trigger,
-                                  overload={c.name: bool(ov[i, j]) for j, c in enumerate(chans)},
-                                  timestamp=float(ts[i]), backend=be[i].decode(), meta=meta))
-        return out
+        return read_records(self._f["shots"], kind, limit)
 
     # -- results -------------------------------------------------------
     def write_group(self, path: str, data: dict) -> None:
         """Write a nested dict (arrays, scalars, strings, dicts) under ``/results/<path>``,
-        replacing any previous content of that group."""
-        f = self._normal()
-        full = f"results/{path.strip('/')}"
-        if full in f:
-            del f[full]
-        _write_tree(f.require_group(full), data)
-        f.flush()
+        replacing any previous content of that group.
+
+        Crash-safe: written into a copy of the run (``RUN.h5.results``), synced, then
+        renamed over it; a kill at any moment leaves the earlier results intact.
+        ``UserError`` naming the file when the disk is full or read-only (the run
+        file is unchanged)."""
+        self._normal()
+        self._handles = (None,)
+        self._f.flush()
+        self._f.close()
+        self._f = None
+        try:
+            replace_group(self.path, f"results/{path.strip('/')}", data)
+        finally:
+            self._f = h5py.File(self.path, "a", libver="latest", locking=False)
 
     def write_result(self, path: str, data: dict) -> None:
         """Write a result (nested dict) under ``/results/<path>`` twice over: its arrays and
@@ -429,80 +490,10 @@ class RunStore:
         full = f"results/{path.strip('/')}"
         if full not in self._f:
             raise KeyError(f"no results group {path!r} in {self.path}")
-        return _read_tree(self._f[full])
+        with self._reading():
+            return read_tree(self._f[full])
 
     def read_result(self, path: str) -> Any:
         """The result under ``/results/<path>`` as ``write_result`` wrote it: its JSON copy
         when it has one, else the nested dict of ``read_group``. KeyError if absent."""
         return decode_result(self.read_group(path))
-
-
-def decode_result(g: Any) -> Any:
-    """A results group as written by ``write_result``: its JSON copy when it has one."""
-    if isinstance(g, dict) and isinstance(g.get("json"), str):
-        try:
-            return json.loads(g["json"])
-        except ValueError:
-            return g
-    return g
-
-
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-
-def _write_tree(g: h5py.Group, data: dict) -> None:
-    g.attrs.setdefault("NX_class", "NXcollection")
-    for k, v in data.items():
-        k = str(k)
-        if isinstance(v, dict):
-            _write_tree(g.create_group(k), v)
-        elif isinstance(v, str):
-            g.create_dataset(k, data=v, dtype=h5py.string_dtype())
-        elif v is None:
-            g.create_dataset(k, data=h5py.Empty("f8"))
-        elif isinstance(v, (list, tuple)) and v and all(isinstance(x, dict) for x in v):
-            sub = g.create_group(k)
-            sub.attrs["list_of"] = len(v)
-            for i, x in enumerate(v):
-                _write_tree(sub.create_group(str(i)), x)
-        elif isinstance(v, (list, tuple)) and v and all(isinstance(x, str) for x in v):
-            g.create_dataset(k, data=list(v), dtype=h5py.string_dtype())
-        else:
-            try:
-                arr = np.asarray(v)
-            except (ValueError, TypeError):
-                arr = np.empty(0, dtype=object)
-            if arr.dtype == object or arr.dtype.kind in "MmU":
-                # mixed lists, dates...: kept as JSON text
-                ds = g.create_dataset(k, data=json.dumps(v, default=str), dtype=h5py.string_dtype())
-                ds.attrs["encoding"] = "json"
-            else:
-                g.create_dataset(k, data=arr)
-
-
-def _read_tree(g: h5py.Group) -> Any:
-    if "list_of" in g.attrs:
-        return [_read_tree(g[str(i)]) for i in range(int(g.attrs["list_of"]))]
-    out: dict[str, Any] = {}
-    for k, v in g.items():
-        if isinstance(v, h5py.Group):
-            out[k] = _read_tree(v)
-            continue
-        if v.shape is None:
-            out[k] = None
-            continue
-        x = v[()]
-        if v.attrs.get("encoding") == "json":
-            out[k] = json.loads(x.decode() if isinstance(x, bytes) else x)
-        elif v.dtype.kind == "O" or h5py.check_string_dtype(v.dtype):
-            out[k] = x.decode() if isinstance(x, bytes) else [s.decode() for s in x]
-        elif isinstance(x, np.ndarray):
-            out[k] = x
-        else:
-            out[k] = x.item() if isinstance(x, np.generic) else x
-    return out

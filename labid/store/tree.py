@@ -1,0 +1,112 @@
+"""Nested dicts <-> HDF5 groups (the ``/results`` and ``/config`` trees of a run file)."""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ..atomic import fsync_dir
+from ..errors import UserError
+
+__all__ = ["decode_result", "json_default", "write_tree", "read_tree", "replace_group"]
+
+
+def decode_result(g: Any) -> Any:
+    """A results group as written by ``write_result``: its JSON copy when it has one."""
+    if isinstance(g, dict) and isinstance(g.get("json"), str):
+        try:
+            return json.loads(g["json"])
+        except ValueError:
+            return g
+    return g
+
+
+def json_default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def write_tree(g: h5py.Group, data: dict) -> None:
+    g.attrs.setdefault("NX_class", "NXcollection")
+    for k, v in data.items():
+        k = str(k)
+        if isinstance(v, dict):
+            write_tree(g.create_group(k), v)
+        elif isinstance(v, str):
+            g.create_dataset(k, data=v, dtype=h5py.string_dtype())
+        elif v is None:
+            g.create_dataset(k, data=h5py.Empty("f8"))
+        elif isinstance(v, (list, tuple)) and v and all(isinstance(x, dict) for x in v):
+            sub = g.create_group(k)
+            sub.attrs["list_of"] = len(v)
+            for i, x in enumerate(v):
+                write_tree(sub.create_group(str(i)), x)
+        elif isinstance(v, (list, tuple)) and v and all(isinstance(x, str) for x in v):
+            g.create_dataset(k, data=list(v), dtype=h5py.string_dtype())
+        else:
+            try:
+                arr = np.asarray(v)
+            except (ValueError, TypeError):
+                arr = np.empty(0, dtype=object)
+            if arr.dtype == object or arr.dtype.kind in "MmU":
+                # mixed lists, dates...: kept as JSON text
+                ds = g.create_dataset(k, data=json.dumps(v, default=str), dtype=h5py.string_dtype())
+                ds.attrs["encoding"] = "json"
+            else:
+                g.create_dataset(k, data=arr)
+
+
+def read_tree(g: h5py.Group) -> Any:
+    if "list_of" in g.attrs:
+        return [read_tree(g[str(i)]) for i in range(int(g.attrs["list_of"]))]
+    out: dict[str, Any] = {}
+    for k, v in g.items():
+        if isinstance(v, h5py.Group):
+            out[k] = read_tree(v)
+            continue
+        if v.shape is None:
+            out[k] = None
+            continue
+        x = v[()]
+        if v.attrs.get("encoding") == "json":
+            out[k] = json.loads(x.decode() if isinstance(x, bytes) else x)
+        elif v.dtype.kind == "O" or h5py.check_string_dtype(v.dtype):
+            out[k] = x.decode() if isinstance(x, bytes) else [s.decode() for s in x]
+        elif isinstance(x, np.ndarray):
+            out[k] = x
+        else:
+            out[k] = x.item() if isinstance(x, np.generic) else x
+    return out
+
+
+def replace_group(run: Path, full: str, data: dict) -> None:
+    """Replace the group ``full`` of the closed file ``run`` by ``data``, crash-safely: the
+    file is copied to ``RUN.h5.results``, the group written there, the copy synced and
+    renamed over ``run`` (a kill at any moment leaves the old file or the new one).
+    UserError naming the file when the disk is full or read-only (``run`` unchanged)."""
+    tmp = run.with_name(run.name + ".results")
+    try:
+        shutil.copyfile(run, tmp)
+        with h5py.File(tmp, "a", libver="latest", locking=False) as f:
+            if full in f:
+                del f[full]
+            write_tree(f.require_group(full), data)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, run)
+        fsync_dir(run.parent)
+    except OSError as e:
+        if e.errno is None and "errno" not in str(e):
+            raise
+        raise UserError(f"results not written ({e.strerror or str(e).splitlines()[0][:120]}); "
+                        "the run file is unchanged", file=str(run)) from None
+    finally:
+        tmp.unlink(missing_ok=True)
