@@ -15,7 +15,7 @@ from . import cluster, services
 from .cmdutil import add_json_option
 from .errors import UserError
 from .identification import (METHODS, load_problem, multi_start, load_features,
-                             parse_assignments, plot_multi_start, random_starts, run, start_values)
+                             parse_assignments, plot_multi_start, random_starts, result_dict, run, start_values)
 
 
 def register(sub) -> None:
@@ -42,6 +42,9 @@ def register(sub) -> None:
     p.add_argument("--mcmc", type=int, default=0, metavar="STEPS",
                    help="also sample the full posterior by MCMC (emcee) with STEPS steps per walker")
     p.add_argument("--csv", metavar="DIR", help="also write the constants as DIR/constants.csv")
+    p.add_argument("--strict", action="store_true",
+                   help="exit 3 (after writing the outputs) when the fit is inconsistent with its data "
+                        "(chi^2 p-value < 1e-3)")
     add_json_option(p)
     p.set_defaults(func=_run)
 
@@ -68,7 +71,7 @@ def _identify(args: argparse.Namespace, client) -> dict:
     if args.starts < 0 or args.workers < 1:
         raise UserError("expected --starts >= 0 and --workers >= 1", key="--starts")
     est = run(problem, names, start, method=args.method, prior=args.prior)
-    out = est.to_dict()
+    out = result_dict(est)
     out["data"] = list(problem.kinds)
     if args.mcmc:
         if args.mcmc < 10:
@@ -90,6 +93,8 @@ def _identify(args: argparse.Namespace, client) -> dict:
             plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
     if args.json != "-":
         _print(out, est.names)
+    if args.strict and not out["fit"]["consistent"]:
+        args.exit_code = 3
     if note := services.store_for_features(args.features, "identification", out):
         sys.stderr.write(f"labid identify: {note}\n")
     if args.csv:
@@ -100,6 +105,15 @@ def _identify(args: argparse.Namespace, client) -> dict:
 
 def _print(out: dict, names) -> None:
     w = sys.stdout.write
+    fit = out["fit"]
+    if not fit["consistent"]:
+        w(f"INCONSISTENT FIT: chi^2/nu = {fit['chi2_per_dof']:.3g} (p = {fit['p_value']:.2g}): the constants "
+          "below are NOT identified\n")
+    elif not fit["identified"]:
+        w(f"fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g}); not identified: "
+          + ", ".join(out["identifiability"]["poorly_identified"]) + "\n")
+    else:
+        w(f"identified: fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g})\n")
     w(f"{out['specimen']}: data {'+'.join(out['data'])}, method {out['method']}, "
       f"{'converged' if out['converged'] else 'NOT converged'} in {out['iterations']} iterations\n")
     ident = out["identifiability"]["parameters"]
@@ -107,8 +121,12 @@ def _print(out: dict, names) -> None:
         v, s = out["parameters"][n]["value"], out["parameters"][n]["std"]
         unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
         flag = "" if ident[n]["identified"] else (
-            f"   (poorly identified; +-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
+            f"   (not identified: {ident[n].get('reason', 'poorly identified')}; "
+            f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
         w(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}\n")
+    for n, h in out.get("held", {}).items():
+        unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
+        w(f"  {n:>7} = {h['value'] * sc:10.4g} held at nominal ({h['reason']})\n")
     r = out["residual"]
     w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
     for msg in out["warnings"]:

@@ -93,8 +93,12 @@ class ModalForward:
     """
 
     def __init__(self, model, n_measured: int, *, points=None, shapes=None,
-                 material: str | None = None, n_extra: int = 4, min_mac: float = 0.6):
+                 material: str | None = None, n_extra: int = 4, min_mac: float = 0.6,
+                 correction: np.ndarray | None = None):
         self.model, self.n, self.material = model, int(n_measured), material
+        #: per predicted mode (ascending), f_fine / f_model: the discretisation correction
+        #: (engine.plate.convergence.mode_corrections); None = the model's own frequencies
+        self.correction = None if correction is None else np.asarray(correction, float)
         self.points = None if points is None else np.asarray(points, float)
         self.shapes = None if shapes is None else np.asarray(shapes, float)
         if self.shapes is not None:
@@ -149,16 +153,27 @@ class ModalForward:
         self.warnings.clear()
         self._ref_shapes = None
 
+    def corrected_hz(self, modes) -> np.ndarray:
+        """Frequencies (Hz) of ``modes`` (ascending) with the discretisation correction."""
+        f = modes.frequencies_hz
+        if self.correction is None:
+            return f
+        c = np.ones(f.size)
+        k = min(f.size, self.correction.size)
+        c[:k] = self.correction[:k]
+        return f * c
+
     def predict(self, params: Mapping[str, float]) -> np.ndarray:
         sol = self.solve(params)
-        return sol.modes.frequencies_hz[sol.index]
+        return self.corrected_hz(sol.modes)[sol.index]
 
     def jacobian(self, params: Mapping[str, float], names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
         modes, idx, _ = self.solve(params)
         dlam = self.model.eigen_sensitivities(modes, list(names), params=dict(params),
                                               material=self.material)[idx]
-        f = modes.frequencies_hz[idx]
-        return f, dlam / (8.0 * np.pi ** 2 * f)[:, None]
+        f0 = modes.frequencies_hz[idx]
+        f = self.corrected_hz(modes)[idx]
+        return f, (f / f0)[:, None] * dlam / (8.0 * np.pi ** 2 * f0)[:, None]
 
 
 class SelectedModes:
@@ -181,9 +196,24 @@ class SelectedModes:
 
 
 def modal_block(model, frequencies_hz, sigma_hz, *, points=None, shapes=None,
-                material: str | None = None, name: str = "modal", n_extra: int = 4
+                material: str | None = None, name: str = "modal", n_extra: int = 4,
+                correction: np.ndarray | None = None, model_error_rel: np.ndarray | None = None
                 ) -> tuple[DataBlock, ModalForward]:
-    """Natural-frequency data block (Hz) and its forward model (for warnings/pairing)."""
+    """Natural-frequency data block (Hz) and its forward model (for warnings/pairing).
+
+    ``correction`` (per predicted mode, ascending): f_fine / f_model, applied to every
+    prediction; ``model_error_rel`` (same length): the relative error remaining after it,
+    added in quadrature to each measured mode's sigma: the largest error among the predicted
+    modes of the same rank and the two above (missing modes only move a peak's partner up)."""
     f = np.asarray(frequencies_hz, float)
-    fwd = ModalForward(model, len(f), points=points, shapes=shapes, material=material, n_extra=n_extra)
-    return DataBlock(name, f, sigma_hz, fwd.predict, fwd.jacobian, kind="modal"), fwd
+    fwd = ModalForward(model, len(f), points=points, shapes=shapes, material=material, n_extra=n_extra,
+                       correction=correction)
+    sig = np.broadcast_to(np.asarray(sigma_hz, float), f.shape)
+    if model_error_rel is not None:
+        err = np.asarray(model_error_rel, float)
+        # the error of the measured mode's most likely partner: the mode of the same rank
+        # or above (missing modes only push the partner up); the max over ranks i..i+2
+        rank = np.argsort(np.argsort(f))
+        e = np.array([err[min(r, err.size - 1):min(r + 3, err.size)].max() for r in rank])
+        sig = np.sqrt(sig ** 2 + (e * f) ** 2)
+    return DataBlock(name, f, sig, fwd.predict, fwd.jacobian, kind="modal"), fwd
