@@ -21,19 +21,24 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from engine.features import Features
-from engine.fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
-                        nelder_mead_fit)
+from engine.fit import DataBlock, Estimate, IdentificationError, Prior
 from engine.forward import modal_block, wave_block
+from engine.forward.identify import (BOX, N_EXTRA_MODES, POISSON_MAX, RUNAWAY, FitContext, bounds,
+                                     fit_blocks, pairing_report)
+from engine.forward.identify import admissibility as engine_admissibility
+from engine.forward.identify import discretisation as discretisation_error
+from engine.forward.identify import verdict as engine_verdict
+from engine.forward.modal import extra_modes
 from engine.laminate import PhysicsError
 from engine.plate import PlateModel
-from engine.plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
 
 from .errors import UserError
 from .features import parse_features
 from .specimen import Specimen
 
 __all__ = ["Problem", "problem_from_features", "default_params", "parse_assignments", "start_values", "run",
-           "METHODS", "verdict", "admissibility", "RUNAWAY", "result_dict", "bounds", "boxed"]
+           "METHODS", "verdict", "admissibility", "RUNAWAY", "BOX", "POISSON_MAX", "result_dict", "bounds", "context",
+           "pairing_report"]
 
 METHODS = ("lm", "bayes", "nelder-mead")
 
@@ -108,12 +113,20 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
                 modal_model = modal_model.with_point_masses(masses)
                 notes.append(f"modal model includes {len(masses)} accelerometer mass(es)")
         corr = err = None
+        n_extra = extra_modes(f.size, N_EXTRA_MODES)
         if discretisation:
-            corr, err, note = _discretisation(spec, feats, modal_model, material, f.size + N_EXTRA_MODES)
+            corr, err, note = discretisation_error(spec.laminate, spec.length, spec.width, feats.rig.masses(),
+                                                   modal_model, material, f.size + n_extra)
             notes.append(note)
+        pairing = "order" if md.pairing == "order" else "likelihood"
+        resp = feats.rig.accelerometers or (md.points if md.points is not None else None)
+        drive = getattr(feats.rig, "hammer", None)   # not in the features yet: (x, y) m when it is
+        labels = getattr(md, "mode_index", None)     # optional peak labels (labid.features, issue 12)
         try:
             blk, fwd = modal_block(modal_model, f, sig, points=md.points, shapes=md.shapes, material=material,
-                                   correction=corr, model_error_rel=err)
+                                   correction=corr, model_error_rel=err, pairing=pairing,
+                                   response_points=resp, drive_points=None if drive is None else [drive],
+                                   labels=labels, n_extra=n_extra)
         except IdentificationError as e:
             raise UserError(str(e), file=src, key="modal") from None
         blocks.append(blk)
@@ -134,26 +147,6 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
         raise UserError("no modal frequencies and no wave velocities: nothing to identify",
                         file=src, key="modal/waves")
     return Problem(spec, blocks, material, fwd, src, notes, replace(feats, material=material))
-
-
-#: predicted modes beyond the measured count (corrections; pairing with missing modes)
-N_EXTRA_MODES = 8
-
-
-def _discretisation(spec: Specimen, feats: Features, model, material: str, n: int):
-    """(correction, error_rel, note) of the first ``n`` modes of ``model`` from a finer mesh."""
-    fine = PlateModel.build(spec.laminate, spec.length, spec.width,
-                            finer_mesh(spec.length, spec.width, spec.laminate.thickness, FINE_FACTOR))
-    masses = feats.rig.masses()
-    if masses:
-        fine = fine.with_point_masses(masses)
-    n = min(n, int(0.4 * model.mesh.n_dof) - 12)
-    mc = mode_corrections(model, fine, n, material=material)
-    k = int(np.argmax(np.abs(mc.ratio - 1)))
-    note = (f"modal: discretisation of the plate mesh corrected from a {FINE_FACTOR:g}x finer mesh "
-            f"(largest correction {100 * (mc.ratio[k] - 1):+.3g} % at mode {k + 1}; remaining error "
-            f"<= {100 * mc.error_rel.max():.2g} % added to the sigmas)")
-    return mc.ratio, mc.error_rel, note
 
 
 # ---------------------------------------------------------------------------
@@ -231,7 +224,7 @@ def start_values(problem: Problem, names: Sequence[str], start: Mapping[str, flo
 # ---------------------------------------------------------------------------
 def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
         *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
-        scale_sigmas: bool = True, consistency: bool = True) -> Estimate:
+        scale_sigmas: bool = True, consistency: bool = True, global_stage: bool = True) -> Estimate:
     """Estimate ``names`` (default: :func:`default_params`) from ``problem``.
 
     ``method``: ``lm`` (combined whitened least squares, Levenberg-Marquardt
@@ -259,141 +252,26 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     st = start_values(problem, names, start)
     if method not in METHODS:
         raise UserError(f"method {method!r}: expected one of {list(METHODS)}", key="--method")
-    if problem.modal_forward is not None:
-        problem.modal_forward.reset_tracking()
-    blocks = boxed(problem, problem.blocks)
-    try:
-        if method == "lm":
-            est = estimate(blocks, names, st, prior=prior, max_iter=max_iter)
-        elif method == "bayes":
-            est = bayesian_update(blocks, names, st,
-                                  prior_rel_std=0.5 if prior is None else prior, max_iter=max_iter)
-        else:
-            est = nelder_mead_fit(blocks, names, st, prior=prior)
-    except IdentificationError as e:
-        raise UserError(str(e), file=problem.source) from None
-    scale_notes: list[str] = []
-    if scale_sigmas and method == "lm":
-        est, scale_notes = checks.birge_refit(blocks, est, names, st, prior, max_iter)
-    if consistency and method == "lm" and len(problem.kinds) > 1:
-        scale_notes += checks.consistency(blocks, est, names, prior, max_iter)
-    warnings = list(est.warnings) + list(problem.notes) + scale_notes
-    est, verdict_notes = verdict(problem, est, scale_sigmas=scale_sigmas)
-    warnings += verdict_notes
-    if problem.modal_forward is not None:
-        warnings += problem.modal_forward.warnings
-    return replace(est, warnings=tuple(warnings))
+    return fit_blocks(context(problem), problem.blocks, names, st, method=method, prior=prior, max_iter=max_iter,
+                      scale_sigmas=scale_sigmas, consistency=consistency, global_stage=global_stage,
+                      notes=problem.notes, on_error=lambda e: UserError(str(e), file=problem.source))
 
 
-#: a fitted constant more than this factor from nominal is not identified (issue 12)
-RUNAWAY = 10.0
-#: the fit's box: moduli and density within this factor of nominal, Poisson ratios in (0, POISSON_MAX)
-BOX = 20.0
-POISSON_MAX = 1.0
-
-
-def bounds(problem: Problem) -> dict[str, tuple[float, float]]:
-    """The box the fit stays in ({name: (low, high)}, SI): moduli within BOX x of nominal,
-    Poisson ratios in (0, POISSON_MAX); the positive-definite stiffness is checked by the
-    forward models themselves (PhysicsError)."""
-    out = {}
-    for n, v in problem.nominal.items():
-        out[n] = (0.0, POISSON_MAX) if n.startswith("nu") else (v / BOX, v * BOX)
-    return out
-
-
-def boxed(problem: Problem, blocks: Sequence[DataBlock]) -> list[DataBlock]:
-    """``blocks`` whose predictions raise ValueError outside :func:`bounds` (the
-    estimators then shorten the step: the fit stops at the bound, and is flagged)."""
-    box = bounds(problem)
-
-    def guard(fn):
-        def wrapped(params, *a):
-            for n, v in params.items():
-                lo, hi = box.get(n, (-math.inf, math.inf))
-                if not lo < v < hi:
-                    raise ValueError(f"{n} = {v:.4g} outside the fit's box ({lo:.4g}, {hi:.4g})")
-            return fn(params, *a)
-        return wrapped
-
-    return [replace(b, predict=guard(b.predict), jacobian=None if b.jacobian is None else guard(b.jacobian))
-            for b in blocks]
-
-
-def admissibility(problem: Problem, params: Mapping[str, float], rel: float = 0.02) -> dict[str, str]:
-    """{name: reason} for constants more than RUNAWAY x from nominal, or at the edge of the
-    admissible region (a change of ``rel`` in either direction makes the 3D stiffness
-    non positive-definite or leaves a Poisson ratio's bounds)."""
-    nominal = problem.nominal
+def context(problem: Problem) -> FitContext:
+    """The engine's FitContext of a problem."""
     mat = problem.specimen.laminate.materials[problem.material]
-    out: dict[str, str] = {}
-    box = bounds(problem)
-    for n, v in params.items():
-        ratio = v / nominal[n]
-        lo, hi = box[n]
-        if v <= lo + rel * (hi - lo) * (n.startswith("nu")) or v >= hi / (1.0 + rel):
-            out[n] = f"at the bound of the fit's box ({lo:.4g}, {hi:.4g})"
-            continue
-        if ratio > RUNAWAY or ratio < 1.0 / RUNAWAY:
-            out[n] = f"moved {ratio:.3g}x from nominal (more than {RUNAWAY:g}x)"
-            continue
-        for f in (1.0 + rel, 1.0 / (1.0 + rel)):
-            try:
-                mat.with_params(**{**params, n: v * f}).check()
-            except PhysicsError:
-                out[n] = "at the edge of the admissible region (positive-definite stiffness, Poisson bounds)"
-                break
-    return out
+    return FitContext(mat, problem.nominal, problem.isotropic, problem.specimen.length, problem.specimen.width,
+                      problem.modal_forward, problem.material)
 
 
 def verdict(problem: Problem, est: Estimate, *, scale_sigmas: bool = True) -> tuple[Estimate, list[str]]:
-    """(Estimate with the ``fit`` verdict, notes).
+    """The verdict of ``est`` (engine.forward.identify.verdict) for ``problem``."""
+    return engine_verdict(context(problem), est, scale_sigmas=scale_sigmas)
 
-    ``fit``: chi2 and p-value against the sigmas as given (before any Birge scaling),
-    dof, ``consistent`` (p >= 1e-3), ``std_scale`` (the stds are multiplied by
-    sqrt(chi^2/nu) whenever chi^2/nu > 1: they grow monotonically with the misfit),
-    ``flags`` ({parameter: reason}: runaway or at the admissible edge) and
-    ``identified`` (consistent and every parameter identified). A constant is
-    identified only when its relative std is below the threshold, it is not flagged and
-    the fit is consistent.
-    """
-    fit = checks.goodness(est)
-    scale = est.sigma_scale or {}
-    chi2_scaled = fit["chi2"]
-    if scale:   # the verdict judges the sigmas as stated, not as Birge-scaled
-        chi2 = sum(r["chi2"] * scale.get(r["kind"], 1.0) ** 2 for r in est.residuals.values())
-        fit = checks.goodness(replace(est, residuals={"all": {"chi2": chi2, "n": fit["n_points"],
-                                                               "kind": "all"}}))
-    notes: list[str] = []
-    factor = math.sqrt(chi2_scaled / fit["dof"]) if scale_sigmas and chi2_scaled > fit["dof"] else 1.0
-    est = checks.scale_uncertainty(est, factor)
-    fit["std_scale"] = factor * math.sqrt(max([v * v for v in scale.values()] or [1.0]))
-    flags = admissibility(problem, est.params)
-    ident = dict(est.identifiability)
-    params = {}
-    for n, d in ident["parameters"].items():
-        d = dict(d)
-        if n in flags:
-            d["identified"], d["reason"] = False, flags[n]
-        elif not fit["consistent"]:
-            d["identified"], d["reason"] = False, "inconsistent fit"
-        elif not d["identified"]:
-            d["reason"] = f"relative std above {ident['rel_threshold']:g}"
-        params[n] = d
-    ident["parameters"] = params
-    ident["poorly_identified"] = [n for n in est.names if not params[n]["identified"]]
-    fit["flags"] = flags
-    fit["identified"] = bool(fit["consistent"] and not ident["poorly_identified"])
-    if not fit["consistent"]:
-        notes.append(f"INCONSISTENT fit: chi^2 = {fit['chi2']:.4g} for {fit['dof']} degrees of freedom "
-                     f"(chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g} < 1e-3): a local "
-                     "minimum, a wrong mode pairing, or a model/data mismatch (see labid diagnose); "
-                     "no constant is reported as identified")
-    for n, why in flags.items():
-        notes.append(f"{n} {why}: not identified")
-    if factor > 1.0:
-        notes.append(f"stds scaled by sqrt(chi^2/nu) = {factor:.3g}")
-    return replace(est, identifiability=ident, fit=fit), notes
+
+def admissibility(problem: Problem, params: Mapping[str, float], rel: float = 0.02) -> dict[str, str]:
+    """{name: reason} of flagged constants (engine.forward.identify.admissibility)."""
+    return engine_admissibility(context(problem), params, rel)
 
 
 

@@ -25,14 +25,16 @@ __all__ = ["birge_refit", "consistency", "goodness", "scale_uncertainty", "P_CON
 P_CONSISTENT = 1e-3
 
 
-def goodness(est: Estimate) -> dict:
-    """The fit verdict: ``chi2`` (whitened misfit of all data, prior rows excluded), ``dof``
-    (points - fitted parameters, at least 1), ``chi2_per_dof``, ``p_value`` (chi^2
-    survival function) and ``consistent`` (p >= P_CONSISTENT)."""
+def goodness(est: Estimate, excluded: int = 0, chi2: float | None = None) -> dict:
+    """The fit verdict: ``chi2`` (whitened misfit of all data, prior rows excluded; or as
+    given), ``dof`` (points - ``excluded`` points set aside - fitted parameters, at least
+    1), ``chi2_per_dof``, ``p_value`` (chi^2 survival function) and ``consistent``
+    (p >= P_CONSISTENT)."""
     # scipy.stats: see consistency() for why it is imported here
     from scipy.stats import chi2 as chi2_dist  # noqa: PLC0415
-    chi2 = float(sum(r["chi2"] for r in est.residuals.values()))
-    n = int(sum(r["n"] for r in est.residuals.values()))
+    if chi2 is None:
+        chi2 = float(sum(r["chi2"] for r in est.residuals.values()))
+    n = int(sum(r["n"] for r in est.residuals.values())) - int(excluded)
     dof = max(n - len(est.names), 1)
     p = float(chi2_dist.sf(chi2, dof))
     return {"chi2": chi2, "dof": dof, "n_points": n, "chi2_per_dof": chi2 / dof, "p_value": p,

@@ -1,0 +1,425 @@
+"""The identification's fit over data blocks, with its stages and its verdict (issue 12).
+
+:func:`fit_blocks` is the estimator the workflow (``labid.estimation.run``) and the gap
+diagnosis call; :func:`identify` does the whole job from an ``engine.features.Features``:
+
+1. the blocks (``modal_block`` with the discretisation correction of
+   ``engine.plate.convergence`` and likelihood pairing; ``wave_block``), kept in the fit's
+   box (:func:`bounds`: moduli within BOX x nominal, Poisson ratios in (0, 1); the
+   positive-definite stiffness is checked by the forward models);
+2. with likelihood pairing, a cheap global stage (:func:`global_starts`,
+   ``engine.forward.surrogate``) gives up to N_GLOBAL_FITS starts; each is fitted with
+   re-pairing between local fits (:func:`repair_loop`, oscillation guarded) until one
+   is consistent; the most likely is kept;
+3. Birge refit and data-set consistency (``engine.fit.checks``);
+4. the verdict (:func:`verdict`): chi2, dof, p-value, consistent, std scaled by
+   sqrt(chi2/nu) when > 1, flags (runaway > RUNAWAY x nominal, at the box or the
+   admissible edge), identified; and the pairing report (:func:`pairing_report`).
+
+Units SI.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..features import Features
+from ..fit import DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate, nelder_mead_fit
+from ..laminate import Material, PhysicsError
+from ..plate import PlateModel, mode_families
+from ..plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
+from .modal import extra_modes, modal_block
+from .pairing import MISS_UNKNOWN, SPURIOUS, visibility
+from .surrogate import RitzSurrogate, global_search
+from .waves import wave_block
+
+__all__ = ["FitContext", "fit_blocks", "identify", "verdict", "admissibility", "bounds", "boxed",
+           "global_starts", "repair_loop", "pairing_report", "discretisation", "RUNAWAY", "BOX",
+           "POISSON_MAX", "N_GLOBAL_FITS", "MAX_REPAIR", "TAU_RANGE", "N_EXTRA_MODES"]
+
+METHODS = ("lm", "bayes", "nelder-mead")
+#: predicted modes beyond the measured count (at least; corrections, pairing with missing modes)
+N_EXTRA_MODES = 4
+
+
+@dataclass
+class FitContext:
+    """What the stages and the verdict need besides the blocks: the material fitted
+    (``material`` its name, ``material_obj`` the nominal Material), its ``nominal``
+    constants, ``isotropic``, the plate ``length`` x ``width`` (m) and the modal
+    forward model (None without modal data)."""
+
+    material_obj: Material
+    nominal: dict
+    isotropic: bool
+    length: float
+    width: float
+    modal_forward: Any = None
+    material: str | None = None
+
+
+def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str], start: Mapping[str, float],
+               *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
+               scale_sigmas: bool = True, consistency: bool = True, global_stage: bool = True,
+               notes: Sequence[str] = (), on_error: Callable[[Exception], Exception] = lambda e: e
+               ) -> Estimate:
+    """The estimate of ``names`` from ``start`` (every name given) with the stages of the
+    module docstring; ``notes`` are prepended to the warnings; ``on_error`` maps an
+    ``IdentificationError`` to the exception raised (the workflow's UserError)."""
+    names = tuple(names)
+    st = dict(start)
+    if ctx.modal_forward is not None:
+        ctx.modal_forward.reset_tracking()
+    blocks = boxed(ctx, blocks)
+
+    def fit(start_: Mapping[str, float]) -> Estimate:
+        try:
+            if method == "lm":
+                return estimate(blocks, names, start_, prior=prior, max_iter=max_iter)
+            if method == "bayes":
+                return bayesian_update(blocks, names, start_,
+                                       prior_rel_std=0.5 if prior is None else prior, max_iter=max_iter)
+            return nelder_mead_fit(blocks, names, start_, prior=prior)
+        except IdentificationError as e:
+            raise on_error(e) from None
+
+    fwd = ctx.modal_forward
+    like = fwd is not None and getattr(fwd, "likelihood_pairing", False)
+    pair_notes: list[str] = []
+    starts = [st]
+    if like and method == "lm" and global_stage:
+        starts, note = global_starts(ctx, names, st)
+        pair_notes.append(note)
+    tried: list[Estimate] = []
+    for s0 in starts:
+        if like:
+            fwd.reset_pairing()
+        e = fit(s0)
+        if like:
+            e, notes_ = _repair_loop(ctx, e, fit, st)
+            e = replace(e, fit={"assignment": fwd.assignment, "notes": notes_})
+        tried.append(e)
+        chi2 = sum(r["chi2"] for r in e.residuals.values())
+        n = sum(r["n"] for r in e.residuals.values())
+        if chi2 <= n + 3.0 * math.sqrt(2.0 * n):      # consistent enough: stop
+            break
+    est = min(tried, key=_penalised)
+    if like:
+        fwd.repair_fixed_assignment(est.fit["assignment"])
+        pair_notes += est.fit["notes"]
+        est = replace(est, fit=None, start=dict(st), iterations=sum(e.iterations for e in tried),
+                      seconds=sum(e.seconds for e in tried))
+        if len(tried) > 1:
+            pair_notes.append(f"global stage: {len(tried)} candidate starts fitted; kept the most likely")
+    scale_notes: list[str] = []
+    if scale_sigmas and method == "lm":
+        est, scale_notes = checks.birge_refit(blocks, est, names, st, prior, max_iter)
+    if consistency and method == "lm" and len({b.kind for b in blocks}) > 1:
+        scale_notes += checks.consistency(blocks, est, names, prior, max_iter)
+    warnings = list(est.warnings) + list(notes) + pair_notes + scale_notes
+    est, verdict_notes = verdict(ctx, est, scale_sigmas=scale_sigmas)
+    warnings += verdict_notes
+    if like:
+        est = replace(est, fit={**est.fit, **pairing_report(ctx, est.params)})
+    if ctx.modal_forward is not None:
+        warnings += ctx.modal_forward.warnings
+    return replace(est, warnings=tuple(warnings))
+
+
+
+#: candidate starts of the global stage fitted at most (the next only when the last was inconsistent)
+N_GLOBAL_FITS = 3
+
+
+def _penalised(est: Estimate) -> float:
+    """chi^2 plus the pairing penalties (unexplained peaks, skipped modes) of the
+    likelihood pairing, when there is one."""
+    chi2 = sum(r["chi2"] for r in est.residuals.values())
+    a = (est.fit or {}).get("assignment")
+    if a is None:
+        return chi2
+    n_un = int(np.sum(a.index < 0))
+    return chi2 + SPURIOUS * n_un + MISS_UNKNOWN * len(a.skipped)
+
+
+def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, float]
+                  ) -> tuple[list[dict[str, float]], str]:
+    """Starts for the local fit from the cheap global stage (engine.forward.surrogate):
+    candidates over +-50 % (log-uniform) of the constants modal data constrain best (E1,
+    E2, G12; isotropic E, G) among ``names``, the others at the start, ranked by their
+    penalised pairing cost; the given start first when it ranks as well. Up to
+    N_GLOBAL_FITS distinct starts (more than 5 % apart), best first."""
+    fwd = ctx.modal_forward
+    best_names = [n for n in (("E", "G") if ctx.isotropic else ("E1", "E2", "G12")) if n in names]
+    if not best_names:
+        return [dict(start)], "global stage: skipped (no E1, E2, G12 / E, G fitted)"
+    full = {k: v for k, v in ctx.nominal.items() if k != "density"}
+    full.update({k: v for k, v in start.items() if k != "density"})
+    mat = ctx.material_obj
+
+    def check(p):
+        mat.with_params(**p).check()
+
+    sur = RitzSurrogate(fwd.model, full, best_names, fwd.n_solve, material=ctx.material)
+    vis = None
+    if fwd.response_points is not None and len(fwd.response_points):
+        modes = fwd.model.solve(fwd.n_solve, params=full, material=ctx.material)
+        vis = visibility(fwd.model, modes, fwd.response_points, fwd.drive_points)
+    cands = global_search(sur, best_names, fwd.observed, fwd.sigma_obs, visible=vis,
+                          correction=fwd.correction, check=check)
+    out: list[dict[str, float]] = []
+    for cost, p in cands:
+        st = {n: (p[n] if n in p else start[n]) for n in names}
+        if all(max(abs(math.log(st[n] / o[n])) for n in best_names) > 0.05 for o in out):
+            out.append(st)
+        if len(out) == N_GLOBAL_FITS:
+            break
+    c0 = cands[0][0] if cands else math.nan
+    return out or [dict(start)], (f"global stage: {len(cands)} candidates over +-50 % of "
+                                  f"{', '.join(best_names)} ranked by pairing cost (best {c0:.3g})")
+
+
+#: re-pairing rounds of the likelihood pairing (each a refit from the last estimate)
+MAX_REPAIR = 6
+#: the pairing tolerance follows the fit: 3 robust stds of the paired peaks' relative misfit, in these bounds
+TAU_RANGE = (0.003, 0.05)
+
+
+def _paired_rms(ctx: FitContext, est: Estimate) -> float:
+    fwd = ctx.modal_forward
+    r = next(v for v in est.residuals.values() if v["kind"] == "modal")
+    ok = fwd.assignment.index >= 0
+    rel = np.asarray(r["relative"])[ok]
+    # robust (median-based) spread: one wrongly paired or spurious peak must not widen the
+    # tolerance that would let it stay paired
+    return float(3.0 * 1.4826 * np.median(np.abs(rel))) if rel.size else 1.0
+
+
+def _repair_loop(ctx: FitContext, est: Estimate, fit, start: Mapping[str, float]
+                 ) -> tuple[Estimate, list[str]]:
+    """Re-pair at each estimate (tolerance from its misfit) and refit until the assignment
+    no longer changes; an assignment seen before (oscillation) stops the loop at the one
+    of lowest penalised cost."""
+    fwd = ctx.modal_forward
+    seen: dict[tuple, tuple[float, Estimate]] = {}
+    notes: list[str] = []
+    iters = est.iterations
+    for _ in range(MAX_REPAIR):
+        tau = float(np.clip(_paired_rms(ctx, est), *TAU_RANGE))
+        key = tuple(fwd.assignment.index.tolist())
+        seen[key] = (fwd.assignment.cost, est)
+        if not fwd.repair(est.params, tau):
+            break
+        new = tuple(fwd.assignment.index.tolist())
+        if new in seen:   # oscillation: keep the assignment of lowest penalised cost
+            best = min(seen, key=lambda k: seen[k][0])
+            fwd.assignment = fwd.assignment._replace(index=np.array(best), cost=seen[best][0])
+            fwd.repair_fixed(np.array(best))
+            est = seen[best][1]
+            notes.append("modal: pairing oscillated between assignments; kept the most likely")
+            break
+        e2 = fit(est.params)
+        iters += e2.iterations
+        est = replace(e2, start=dict(start), iterations=iters, history=est.history + e2.history)
+    return est, notes
+
+
+def pairing_report(ctx: FitContext, params: Mapping[str, float]) -> dict:
+    """``pairing`` (per peak: peak number, measured_hz, mode_index (None: unexplained),
+    family (engine.plate.labels), predicted_hz) and ``unpaired_modes`` (predicted in-band
+    modes no peak explains: mode_index, family, predicted_hz, visibility)."""
+    fwd = ctx.modal_forward
+    sol = fwd.solve(params)
+    fam = mode_families(fwd.model, sol.modes, ctx.length, ctx.width)
+    fp = fwd.corrected_hz(sol.modes)
+    a = fwd.assignment
+    rows = []
+    for i, (f, j) in enumerate(zip(fwd.observed, a.index)):
+        j = int(j)
+        rows.append({"peak": i, "measured_hz": float(f), "mode_index": j if j >= 0 else None,
+                     "family": fam[j] if j >= 0 else None, "predicted_hz": float(fp[j]) if j >= 0 else None})
+    vis = fwd.visible
+    skipped = [{"mode_index": int(j), "family": fam[j], "predicted_hz": float(fp[j]),
+                "visibility": None if vis is None else float(vis[j])} for j in a.skipped]
+    return {"pairing": rows, "unpaired_modes": skipped}
+
+
+#: a fitted constant more than this factor from nominal is not identified (issue 12)
+RUNAWAY = 10.0
+#: the fit's box: moduli and density within this factor of nominal, Poisson ratios in (0, POISSON_MAX)
+BOX = 20.0
+POISSON_MAX = 1.0
+
+
+def bounds(ctx: FitContext) -> dict[str, tuple[float, float]]:
+    """The box the fit stays in ({name: (low, high)}, SI): moduli within BOX x of nominal,
+    Poisson ratios in (0, POISSON_MAX); the positive-definite stiffness is checked by the
+    forward models themselves (PhysicsError)."""
+    out = {}
+    for n, v in ctx.nominal.items():
+        out[n] = (0.0, POISSON_MAX) if n.startswith("nu") else (v / BOX, v * BOX)
+    return out
+
+
+def boxed(ctx: FitContext, blocks: Sequence[DataBlock]) -> list[DataBlock]:
+    """``blocks`` whose predictions raise ValueError outside :func:`bounds` (the
+    estimators then shorten the step: the fit stops at the bound, and is flagged)."""
+    box = bounds(ctx)
+
+    def guard(fn):
+        def wrapped(params, *a):
+            for n, v in params.items():
+                lo, hi = box.get(n, (-math.inf, math.inf))
+                if not lo < v < hi:
+                    raise ValueError(f"{n} = {v:.4g} outside the fit's box ({lo:.4g}, {hi:.4g})")
+            return fn(params, *a)
+        return wrapped
+
+    return [replace(b, predict=guard(b.predict), jacobian=None if b.jacobian is None else guard(b.jacobian))
+            for b in blocks]
+
+
+def admissibility(ctx: FitContext, params: Mapping[str, float], rel: float = 0.02) -> dict[str, str]:
+    """{name: reason} for constants more than RUNAWAY x from nominal, or at the edge of the
+    admissible region (a change of ``rel`` in either direction makes the 3D stiffness
+    non positive-definite or leaves a Poisson ratio's bounds)."""
+    nominal = ctx.nominal
+    mat = ctx.material_obj
+    out: dict[str, str] = {}
+    box = bounds(ctx)
+    for n, v in params.items():
+        ratio = v / nominal[n]
+        lo, hi = box[n]
+        if v <= lo + rel * (hi - lo) * (n.startswith("nu")) or v >= hi / (1.0 + rel):
+            out[n] = f"at the bound of the fit's box ({lo:.4g}, {hi:.4g})"
+            continue
+        if ratio > RUNAWAY or ratio < 1.0 / RUNAWAY:
+            out[n] = f"moved {ratio:.3g}x from nominal (more than {RUNAWAY:g}x)"
+            continue
+        for f in (1.0 + rel, 1.0 / (1.0 + rel)):
+            try:
+                mat.with_params(**{**params, n: v * f}).check()
+            except PhysicsError:
+                out[n] = "at the edge of the admissible region (positive-definite stiffness, Poisson bounds)"
+                break
+    return out
+
+
+def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True) -> tuple[Estimate, list[str]]:
+    """(Estimate with the ``fit`` verdict, notes).
+
+    ``fit``: chi2 and p-value against the sigmas as given (before any Birge scaling),
+    dof, ``consistent`` (p >= 1e-3), ``std_scale`` (the stds are multiplied by
+    sqrt(chi^2/nu) whenever chi^2/nu > 1: they grow monotonically with the misfit),
+    ``flags`` ({parameter: reason}: runaway or at the admissible edge) and
+    ``identified`` (consistent and every parameter identified). A constant is
+    identified only when its relative std is below the threshold, it is not flagged and
+    the fit is consistent.
+    """
+    fwd = ctx.modal_forward
+    unexplained = 0
+    if fwd is not None and getattr(fwd, "assignment", None) is not None:
+        unexplained = int(np.sum(fwd.assignment.index < 0))   # set aside: no residual, no point
+    fit = checks.goodness(est, unexplained)
+    scale = est.sigma_scale or {}
+    chi2_scaled = fit["chi2"]
+    if scale:   # the verdict judges the sigmas as stated, not as Birge-scaled
+        chi2 = sum(r["chi2"] * scale.get(r["kind"], 1.0) ** 2 for r in est.residuals.values())
+        fit = checks.goodness(est, unexplained, chi2)
+    notes: list[str] = []
+    factor = math.sqrt(chi2_scaled / fit["dof"]) if scale_sigmas and chi2_scaled > fit["dof"] else 1.0
+    est = checks.scale_uncertainty(est, factor)
+    fit["std_scale"] = factor * math.sqrt(max([v * v for v in scale.values()] or [1.0]))
+    flags = admissibility(ctx, est.params)
+    ident = dict(est.identifiability)
+    params = {}
+    for n, d in ident["parameters"].items():
+        d = dict(d)
+        if n in flags:
+            d["identified"], d["reason"] = False, flags[n]
+        elif not fit["consistent"]:
+            d["identified"], d["reason"] = False, "inconsistent fit"
+        elif not d["identified"]:
+            d["reason"] = f"relative std above {ident['rel_threshold']:g}"
+        params[n] = d
+    ident["parameters"] = params
+    ident["poorly_identified"] = [n for n in est.names if not params[n]["identified"]]
+    fit["flags"] = flags
+    fit["identified"] = bool(fit["consistent"] and not ident["poorly_identified"])
+    if not fit["consistent"]:
+        notes.append(f"INCONSISTENT fit: chi^2 = {fit['chi2']:.4g} for {fit['dof']} degrees of freedom "
+                     f"(chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g} < 1e-3): a local "
+                     "minimum, a wrong mode pairing, or a model/data mismatch (see labid diagnose); "
+                     "no constant is reported as identified")
+    for n, why in flags.items():
+        notes.append(f"{n} {why}: not identified")
+    if factor > 1.0:
+        notes.append(f"stds scaled by sqrt(chi^2/nu) = {factor:.3g}")
+    return replace(est, identifiability=ident, fit=fit), notes
+
+
+
+def discretisation(laminate, length: float, width: float, masses, model, material: str | None, n: int):
+    """(correction, error_rel, note) of the first ``n`` modes of ``model`` from a mesh
+    FINE_FACTOR x finer (with the same point ``masses``)."""
+    fine = PlateModel.build(laminate, length, width, finer_mesh(length, width, laminate.thickness, FINE_FACTOR))
+    if masses:
+        fine = fine.with_point_masses(masses)
+    n = min(n, int(0.4 * model.mesh.n_dof) - 12)
+    mc = mode_corrections(model, fine, n, material=material)
+    k = int(np.argmax(np.abs(mc.ratio - 1)))
+    note = (f"modal: discretisation of the plate mesh corrected from a {FINE_FACTOR:g}x finer mesh "
+            f"(largest correction {100 * (mc.ratio[k] - 1):+.3g} % at mode {k + 1}; remaining error "
+            f"<= {100 * mc.error_rel.max():.2g} % added to the sigmas)")
+    return mc.ratio, mc.error_rel, note
+
+
+def identify(features: Features, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
+             *, plate_model=None, correct_discretisation: bool = True, drive_points=None, **kw) -> Estimate:
+    """Constants ``names`` (default: the features' ``param_names()``) from ``features``
+    (engine form), from ``start`` (default nominal), with every stage of this module.
+    ``plate_model``: a prebuilt default-mesh ``PlateModel`` with the rig's masses;
+    ``drive_points``: hammer points (m) for the modes' visibility; ``kw`` go to
+    :func:`fit_blocks`. Wave points with a NaN velocity are dropped."""
+    mat = features.material_obj
+    material = features.material
+    nominal = {k: v for k, v in mat.params().items()}
+    names = tuple(names) if names else features.param_names()
+    st = {n: float((start or {}).get(n, nominal[n])) for n in names}
+    blocks, notes, fwd = [], [], None
+    md = features.modal
+    if md is not None:
+        model = plate_model
+        masses = features.rig.masses()
+        if model is None:
+            model = PlateModel.build(features.laminate, features.length, features.width)
+            if masses:
+                model = model.with_point_masses(masses)
+        f = np.asarray(md.frequency_hz, float)
+        n_extra = extra_modes(f.size, N_EXTRA_MODES)
+        corr = err = None
+        if correct_discretisation:
+            corr, err, note = discretisation(features.laminate, features.length, features.width, masses, model,
+                                             material, f.size + n_extra)
+            notes.append(note)
+        resp = features.rig.accelerometers or (md.points if md.points is not None else None)
+        blk, fwd = modal_block(model, f, md.sigma_hz, points=md.points, shapes=md.shapes, material=material,
+                               correction=corr, model_error_rel=err,
+                               pairing="order" if md.pairing == "order" else "likelihood",
+                               response_points=resp, drive_points=drive_points,
+                               labels=getattr(md, "mode_index", None), n_extra=n_extra)
+        blocks.append(blk)
+    for w in features.waves:
+        ok = np.isfinite(w.frequency_hz) & np.isfinite(w.group_velocity_m_s) & np.isfinite(w.sigma_m_s)
+        if ok.any():
+            blocks.append(wave_block(features.laminate, np.asarray(w.frequency_hz)[ok],
+                                     np.asarray(w.group_velocity_m_s)[ok], np.asarray(w.sigma_m_s)[ok],
+                                     mode=w.mode, direction_deg=w.direction_deg, material=material,
+                                     name=f"waves:{w.label}"))
+    if not blocks:
+        raise IdentificationError("no modal frequencies and no wave velocities: nothing to identify")
+    ctx = FitContext(mat, nominal, mat.isotropic, features.length, features.width, fwd, material)
+    return fit_blocks(ctx, blocks, names, st, notes=notes, **kw)
