@@ -14,7 +14,7 @@ import sys
 from . import cluster, services
 from .cmdutil import add_json_option
 from .errors import UserError
-from .identification import (METHODS, load_problem, multi_start, load_features,
+from .identification import (METHODS, distinct_minima, load_problem, minima_summary, multi_start, load_features,
                              parse_assignments, plot_multi_start, random_starts, result_dict, run, start_values)
 
 
@@ -82,13 +82,14 @@ def _identify(args: argparse.Namespace, client) -> dict:
                                             seed=args.seed).to_dict()
     out["specimen"] = problem.specimen.name
     if args.starts:
-        st0 = start_values(problem, est.names, start)
+        st0 = start_values(problem, est.names, {k: v for k, v in start.items() if k in est.names})
         starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
         doc = load_features(args.features)
         executor = client.get_executor() if client is not None else None
         results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
                               prior=args.prior, executor=executor, max_workers=args.workers)
         out["multi_start"] = results
+        out["multi_start_minima"] = distinct_minima(results, est.names)
         if args.plot:
             plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
     if args.json != "-":
@@ -121,12 +122,11 @@ def _print(out: dict, names) -> None:
         v, s = out["parameters"][n]["value"], out["parameters"][n]["std"]
         unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
         flag = "" if ident[n]["identified"] else (
-            f"   (not identified: {ident[n].get('reason', 'poorly identified')}; "
-            f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
+            f"   (not identified: {ident[n].get('reason', 'poorly identified')})" if n in out.get("held", {})
+            else f"   (not identified: {ident[n].get('reason', 'poorly identified')}; "
+                 f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
         w(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}\n")
-    for n, h in out.get("held", {}).items():
-        unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
-        w(f"  {n:>7} = {h['value'] * sc:10.4g} held at nominal ({h['reason']})\n")
+
     r = out["residual"]
     w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
     for msg in out["warnings"]:
@@ -137,4 +137,7 @@ def _print(out: dict, names) -> None:
           + ", ".join(f"{n} std {ps['std'][n]:.3g}" for n in ps["names"]) + "\n")
     if "multi_start" in out:
         ok = sum(1 for m in out["multi_start"] if m.get("converged"))
-        w(f"  multi-start: {ok}/{len(out['multi_start'])} converged\n")
+        w(f"  {minima_summary(out['multi_start_minima'], len(out['multi_start']))} ({ok} converged)\n")
+        for k, m in enumerate(out["multi_start_minima"][:4]):
+            w(f"    minimum {k + 1}: " + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
+              + f"; chi^2/n {m['chi2_per_point']:.3g}; {m['n_starts']} start(s)\n")

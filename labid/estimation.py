@@ -23,7 +23,7 @@ import numpy as np
 from engine.features import Features
 from engine.fit import DataBlock, Estimate, IdentificationError, Prior
 from engine.forward import modal_block, wave_block
-from engine.forward.identify import (BOX, N_EXTRA_MODES, POISSON_MAX, RUNAWAY, FitContext, bounds,
+from engine.forward.identify import (BOX, N_EXTRA_MODES, POISSON_MAX, RUNAWAY, FitContext, bounds, identifiable,
                                      fit_blocks, pairing_report)
 from engine.forward.identify import admissibility as engine_admissibility
 from engine.forward.identify import discretisation as discretisation_error
@@ -224,8 +224,15 @@ def start_values(problem: Problem, names: Sequence[str], start: Mapping[str, flo
 # ---------------------------------------------------------------------------
 def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
         *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
-        scale_sigmas: bool = True, consistency: bool = True, global_stage: bool = True) -> Estimate:
+        scale_sigmas: bool = True, consistency: bool = True, global_stage: bool = True,
+        hold: bool = True) -> Estimate:
     """Estimate ``names`` (default: :func:`default_params`) from ``problem``.
+
+    Without ``names``, the default constants the data cannot constrain from the start
+    (relative std above 30 %, engine.forward.identify.identifiable) are held at their
+    start value (nominal unless ``start`` gives one) with ``hold`` (issue 12), and the
+    result says so (``fit["held"]``). The stages and the verdict:
+    ``engine.forward.identify.fit_blocks`` (docs/identification.md).
 
     ``method``: ``lm`` (combined whitened least squares, Levenberg-Marquardt
     in log-parameters), ``bayes`` (Lai & Ip update, Eq. 20; ``prior`` is the
@@ -247,14 +254,25 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     the data sets disagree beyond their sigmas and a warning names the
     parameters they pull apart most: the combined std is then optimistic.
     """
-    names = tuple(names) if names else default_params(problem)
-    _check_names(problem, names, "--params")
-    st = start_values(problem, names, start)
+    held = None
+    if names:
+        names = tuple(names)
+        _check_names(problem, names, "--params")
+        st = start_values(problem, names, start)
+    else:   # the defaults, less what the data cannot constrain from this start (held)
+        names = default_params(problem)
+        st = start_values(problem, names, start)
+        if hold:
+            try:
+                names, held = identifiable(problem.blocks, names, st)
+            except (IdentificationError, ValueError):
+                held = None
+            st = {n: st[n] for n in names}
     if method not in METHODS:
         raise UserError(f"method {method!r}: expected one of {list(METHODS)}", key="--method")
     return fit_blocks(context(problem), problem.blocks, names, st, method=method, prior=prior, max_iter=max_iter,
                       scale_sigmas=scale_sigmas, consistency=consistency, global_stage=global_stage,
-                      notes=problem.notes, on_error=lambda e: UserError(str(e), file=problem.source))
+                      notes=problem.notes, on_error=lambda e: UserError(str(e), file=problem.source), held=held)
 
 
 def context(problem: Problem) -> FitContext:

@@ -27,7 +27,8 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from ..features import Features
-from ..fit import DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate, nelder_mead_fit
+from ..fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate, laplace,
+                   nelder_mead_fit, whitened_jacobian)
 from ..laminate import Material, PhysicsError
 from ..plate import PlateModel, mode_families
 from ..plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
@@ -38,7 +39,8 @@ from .waves import wave_block
 
 __all__ = ["FitContext", "fit_blocks", "identify", "verdict", "admissibility", "bounds", "boxed",
            "global_starts", "repair_loop", "pairing_report", "discretisation", "RUNAWAY", "BOX",
-           "POISSON_MAX", "N_GLOBAL_FITS", "MAX_REPAIR", "TAU_RANGE", "N_EXTRA_MODES"]
+           "POISSON_MAX", "N_GLOBAL_FITS", "MAX_REPAIR", "TAU_RANGE", "N_EXTRA_MODES", "identifiable",
+           "HOLD_REL", "HELD_PRIOR"]
 
 METHODS = ("lm", "bayes", "nelder-mead")
 #: predicted modes beyond the measured count (at least; corrections, pairing with missing modes)
@@ -64,15 +66,25 @@ class FitContext:
 def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str], start: Mapping[str, float],
                *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
                scale_sigmas: bool = True, consistency: bool = True, global_stage: bool = True,
-               notes: Sequence[str] = (), on_error: Callable[[Exception], Exception] = lambda e: e
-               ) -> Estimate:
+               notes: Sequence[str] = (), on_error: Callable[[Exception], Exception] = lambda e: e,
+               held: Mapping[str, tuple[float, str]] | None = None) -> Estimate:
     """The estimate of ``names`` from ``start`` (every name given) with the stages of the
     module docstring; ``notes`` are prepended to the warnings; ``on_error`` maps an
-    ``IdentificationError`` to the exception raised (the workflow's UserError)."""
-    names = tuple(names)
-    st = dict(start)
+    ``IdentificationError`` to the exception raised (the workflow's UserError).
+    ``held``: {name: (value, reason)} constants the data hardly constrain: fitted too,
+    under a weak prior (log-std HELD_PRIOR) centred on ``value``, so that their
+    uncertainty widens the others' stds; never reported as identified (``held``)."""
+    held = dict(held or {})
+    names = tuple(names) + tuple(h for h in held if h not in names)
+    st = {**{h: v for h, (v, _) in held.items()}, **dict(start)}
+    if held:
+        base = prior if isinstance(prior, (int, float)) else None
+        if isinstance(prior, Prior):
+            raise IdentificationError("held constants need a numeric prior (or none)")
+        prior = Prior(mean=dict(st), rel_std={n: (HELD_PRIOR if n in held else base) for n in names})
     if ctx.modal_forward is not None:
         ctx.modal_forward.reset_tracking()
+    fixed = {h: v for h, (v, _) in held.items()}
     blocks = boxed(ctx, blocks)
 
     def fit(start_: Mapping[str, float]) -> Estimate:
@@ -91,16 +103,21 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     pair_notes: list[str] = []
     starts = [st]
     if like and method == "lm" and global_stage:
-        starts, note = global_starts(ctx, names, st)
+        starts, note = global_starts(ctx, names, st, fixed)
         pair_notes.append(note)
     tried: list[Estimate] = []
-    for s0 in starts:
+    for k, s0 in enumerate(starts):
         if like:
             fwd.reset_pairing()
-        e = fit(s0)
-        if like:
-            e, notes_ = _repair_loop(ctx, e, fit, st)
-            e = replace(e, fit={"assignment": fwd.assignment, "notes": notes_})
+        try:
+            e = fit(s0)
+            if like:
+                e, notes_ = _repair_loop(ctx, e, fit, st)
+                e = replace(e, fit={"assignment": fwd.assignment, "notes": notes_})
+        except ValueError:   # a candidate start outside the admissible region: the next one
+            if k < len(starts) - 1 or tried:
+                continue
+            raise
         tried.append(e)
         chi2 = sum(r["chi2"] for r in e.residuals.values())
         n = sum(r["n"] for r in e.residuals.values())
@@ -126,7 +143,53 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
         est = replace(est, fit={**est.fit, **pairing_report(ctx, est.params)})
     if ctx.modal_forward is not None:
         warnings += ctx.modal_forward.warnings
+    if held:
+        ident = dict(est.identifiability)
+        params = dict(ident["parameters"])
+        for h, (v, why) in held.items():
+            params[h] = {**params[h], "identified": False,
+                         "reason": f"held at {v:.4g} under a weak prior (log-std {HELD_PRIOR:g}): {why}"}
+        ident["parameters"] = params
+        ident["poorly_identified"] = [n for n in names if not params[n]["identified"]]
+        fit_ = {**est.fit, "identified": False if len(held) == len(names) else est.fit["identified"],
+                "held": {h: {"value": float(v), "reason": why} for h, (v, why) in held.items()}}
+        fit_["identified"] = bool(fit_["consistent"] and all(params[n]["identified"] for n in names
+                                                             if n not in held) and not fit_["flags"])
+        est = replace(est, identifiability=ident, fit=fit_)
+        warnings.append("held under a weak prior (not identified): "
+                        + ", ".join(f"{k} ({why})" for k, (_, why) in held.items()))
     return replace(est, warnings=tuple(warnings))
+
+
+#: log-std of the weak prior a held constant is fitted under
+HELD_PRIOR = 0.3
+
+
+#: relative std (Laplace, at the start, no prior) above which a default constant is held
+HOLD_REL = 0.3
+
+
+def identifiable(blocks: Sequence[DataBlock], names: Sequence[str], start: Mapping[str, float],
+                 hold_rel: float = HOLD_REL) -> tuple[tuple[str, ...], dict[str, tuple[float, str]]]:
+    """(names to fit, held {name: (start value, reason)}): the constant whose relative std
+    at the start (Laplace, these data alone, no prior) is the largest is held while it is
+    above ``hold_rel``, and the others judged again without it (never all: the
+    best-constrained one is always fitted)."""
+    J = np.vstack(list(whitened_jacobian(blocks, dict(start), list(names)).values()))
+    keep = list(range(len(names)))
+    held: dict[str, tuple[float, str]] = {}
+    while len(keep) > 1:    # greedy: hold the worst, then judge the others without it
+        cov = laplace([J[:, keep]], np.zeros(len(keep)))
+        with np.errstate(invalid="ignore"):
+            rel = np.sqrt(np.abs(np.diag(cov)))
+        rel = np.where(np.isfinite(rel), rel, np.inf)
+        worst = int(np.argmax(rel))
+        if rel[worst] <= hold_rel:
+            break
+        n = names[keep[worst]]
+        held[n] = (float(start[n]), f"relative std {rel[worst]:.3g} > {hold_rel:g} at the start")
+        keep.pop(worst)
+    return tuple(names[i] for i in keep), held
 
 
 
@@ -145,8 +208,8 @@ def _penalised(est: Estimate) -> float:
     return chi2 + SPURIOUS * n_un + MISS_UNKNOWN * len(a.skipped)
 
 
-def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, float]
-                  ) -> tuple[list[dict[str, float]], str]:
+def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, float],
+                  fixed: Mapping[str, float] | None = None) -> tuple[list[dict[str, float]], str]:
     """Starts for the local fit from the cheap global stage (engine.forward.surrogate):
     candidates over +-50 % (log-uniform) of the constants modal data constrain best (E1,
     E2, G12; isotropic E, G) among ``names``, the others at the start, ranked by their
@@ -156,8 +219,9 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
     best_names = [n for n in (("E", "G") if ctx.isotropic else ("E1", "E2", "G12")) if n in names]
     if not best_names:
         return [dict(start)], "global stage: skipped (no E1, E2, G12 / E, G fitted)"
-    full = {k: v for k, v in ctx.nominal.items() if k != "density"}
-    full.update({k: v for k, v in start.items() if k != "density"})
+    elastic = ("E", "G") if ctx.isotropic else ("E1", "E2", "nu12", "G12", "G13", "G23")
+    full = {k: v for k, v in ctx.nominal.items() if k in elastic}
+    full.update({k: v for k, v in {**(fixed or {}), **start}.items() if k in elastic})
     mat = ctx.material_obj
 
     def check(p):
@@ -178,7 +242,9 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
         if len(out) == N_GLOBAL_FITS:
             break
     c0 = cands[0][0] if cands else math.nan
-    return out or [dict(start)], (f"global stage: {len(cands)} candidates over +-50 % of "
+    if all(max(abs(math.log(start[n] / o[n])) for n in best_names) > 0.05 for o in out):
+        out.append(dict(start))      # the given start last, as a fallback
+    return out, (f"global stage: {len(cands)} candidates over +-50 % of "
                                   f"{', '.join(best_names)} ranked by pairing cost (best {c0:.3g})")
 
 
