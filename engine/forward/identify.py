@@ -227,7 +227,10 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
     def check(p):
         mat.with_params(**p).check()
 
-    sur = RitzSurrogate(fwd.model, full, best_names, fwd.n_solve, material=ctx.material)
+    try:
+        sur = RitzSurrogate(fwd.model, full, best_names, fwd.n_solve, material=ctx.material)
+    except (PhysicsError, ValueError, np.linalg.LinAlgError) as e:
+        return [dict(start)], f"global stage: skipped ({e})"
     vis = None
     if fwd.response_points is not None and len(fwd.response_points):
         modes = fwd.model.solve(fwd.n_solve, params=full, material=ctx.material)

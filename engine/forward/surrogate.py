@@ -69,11 +69,14 @@ class RitzSurrogate:
         self.T = T
         # K_r at the start and with each constant 10 % up (and down) -> constant part plus
         # one matrix per q component (least squares: exact, K is linear in q)
-        factors = (1.1,) if len(start) >= 6 else (1.1, 0.9)   # isotropic: q is not linear in (E, G)
+        factors = (1.1,) if len(start) >= 6 else (1.05, 0.95, 1.1, 0.9)   # isotropic: q not linear in (E, G)
         probes = [dict(start)] + [{**start, k: start[k] * f} for k in start for f in factors]
         rows, mats = [], []
         for p in probes:
-            K, _ = model.matrices(p, material)
+            try:
+                K, _ = model.matrices(p, material)
+            except (PhysicsError, ValueError):   # a probe past the admissible edge: skipped
+                continue
             rows.append(np.concatenate([[1.0], self._q(p) / 1e9]))
             mats.append(T.T @ (K @ T))
         A = np.array(rows)
