@@ -64,7 +64,7 @@ class RitzSurrogate:
         K0, M = model.matrices(dict(start), material)
         Mr = V.T @ (M @ V)
         w, U = np.linalg.eigh(0.5 * (Mr + Mr.T))
-        keep = w > 1e-8 * w.max()
+        keep = w > 1e-12 * w.max()
         T = V @ (U[:, keep] / np.sqrt(w[keep]))        # M-orthonormal basis
         self.T = T
         # K_r at the start and with each constant 10 % up (and down) -> constant part plus
