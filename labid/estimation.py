@@ -28,7 +28,7 @@ from engine.forward.identify import (BOX, N_EXTRA_MODES, POISSON_MAX, RUNAWAY, F
 from engine.forward.identify import admissibility as engine_admissibility
 from engine.forward.identify import discretisation as discretisation_error
 from engine.forward.identify import verdict as engine_verdict
-from engine.forward.modal import extra_modes
+from engine.forward.modal import MIN_MAC_POINTS, extra_modes
 from engine.laminate import PhysicsError
 from engine.plate import PlateModel
 
@@ -122,8 +122,13 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
         resp = feats.rig.accelerometers or (md.points if md.points is not None else None)
         drive = getattr(feats.rig, "hammer", None)   # not in the features yet: (x, y) m when it is
         labels = getattr(md, "mode_index", None)     # optional peak labels (labid.features, issue 12)
+        # MAC pairing needs enough shape points (as engine.forward.model's 'auto'); with
+        # fewer (e.g. three accelerometers) the likelihood pairing is more reliable
+        use_mac = (md.shapes is not None and md.points is not None and len(md.points) >= MIN_MAC_POINTS
+                   and md.pairing in ("auto", "mac"))
         try:
-            blk, fwd = modal_block(modal_model, f, sig, points=md.points, shapes=md.shapes, material=material,
+            blk, fwd = modal_block(modal_model, f, sig, points=md.points if use_mac else None,
+                                   shapes=md.shapes if use_mac else None, material=material,
                                    correction=corr, model_error_rel=err, pairing=pairing,
                                    response_points=resp, drive_points=None if drive is None else [drive],
                                    labels=labels, n_extra=n_extra)

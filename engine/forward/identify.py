@@ -32,7 +32,7 @@ from ..fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_upd
 from ..laminate import Material, PhysicsError
 from ..plate import PlateModel, mode_families
 from ..plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
-from .modal import extra_modes, modal_block
+from .modal import MIN_MAC_POINTS, extra_modes, modal_block
 from .pairing import MISS_UNKNOWN, SPURIOUS, visibility
 from .surrogate import RitzSurrogate, global_search
 from .waves import wave_block
@@ -475,7 +475,10 @@ def identify(features: Features, names: Sequence[str] | None = None, start: Mapp
                                              material, f.size + n_extra)
             notes.append(note)
         resp = features.rig.accelerometers or (md.points if md.points is not None else None)
-        blk, fwd = modal_block(model, f, md.sigma_hz, points=md.points, shapes=md.shapes, material=material,
+        use_mac = (md.shapes is not None and md.points is not None and len(md.points) >= MIN_MAC_POINTS
+                   and md.pairing in ("auto", "mac"))
+        blk, fwd = modal_block(model, f, md.sigma_hz, points=md.points if use_mac else None,
+                               shapes=md.shapes if use_mac else None, material=material,
                                correction=corr, model_error_rel=err,
                                pairing="order" if md.pairing == "order" else "likelihood",
                                response_points=resp, drive_points=drive_points,
