@@ -21,46 +21,32 @@ Units SI.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
-from typing import Any, Callable, Mapping, Sequence
+from dataclasses import replace
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
 from ..features import Features
 from ..fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate, laplace,
                    nelder_mead_fit, whitened_jacobian)
-from ..laminate import Material, PhysicsError
+from ..laminate import PhysicsError
 from ..plate import PlateModel, mode_families
 from ..plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
 from .modal import MIN_MAC_POINTS, extra_modes, modal_block
 from .pairing import MISS_UNKNOWN, SPURIOUS, visibility
 from .surrogate import RitzSurrogate, global_search
+from .verdict import (BOX, POISSON_MAX, RUNAWAY, FitContext, admissibility, bounds, boxed, systematic,
+                      verdict)
 from .waves import wave_block
 
 __all__ = ["FitContext", "fit_blocks", "identify", "verdict", "admissibility", "bounds", "boxed",
            "global_starts", "repair_loop", "pairing_report", "discretisation", "RUNAWAY", "BOX",
            "POISSON_MAX", "N_GLOBAL_FITS", "MAX_REPAIR", "TAU_RANGE", "N_EXTRA_MODES", "identifiable",
-           "HOLD_REL", "HELD_PRIOR"]
+           "HOLD_REL", "HELD_PRIOR", "systematic"]
 
 METHODS = ("lm", "bayes", "nelder-mead")
 #: predicted modes beyond the measured count (at least; corrections, pairing with missing modes)
 N_EXTRA_MODES = 4
-
-
-@dataclass
-class FitContext:
-    """What the stages and the verdict need besides the blocks: the material fitted
-    (``material`` its name, ``material_obj`` the nominal Material), its ``nominal``
-    constants, ``isotropic``, the plate ``length`` x ``width`` (m) and the modal
-    forward model (None without modal data)."""
-
-    material_obj: Material
-    nominal: dict
-    isotropic: bool
-    length: float
-    width: float
-    modal_forward: Any = None
-    material: str | None = None
 
 
 def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str], start: Mapping[str, float],
@@ -137,7 +123,9 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     if consistency and method == "lm" and len({b.kind for b in blocks}) > 1:
         scale_notes += checks.consistency(blocks, est, names, prior, max_iter)
     warnings = list(est.warnings) + list(notes) + pair_notes + scale_notes
+    est, sys_note = systematic(ctx, est)
     est, verdict_notes = verdict(ctx, est, scale_sigmas=scale_sigmas)
+    verdict_notes = sys_note + verdict_notes
     warnings += verdict_notes
     if like:
         est = replace(est, fit={**est.fit, **pairing_report(ctx, est.params)})
@@ -314,121 +302,6 @@ def pairing_report(ctx: FitContext, params: Mapping[str, float]) -> dict:
     skipped = [{"mode_index": int(j), "family": fam[j], "predicted_hz": float(fp[j]),
                 "visibility": None if vis is None else float(vis[j])} for j in a.skipped]
     return {"pairing": rows, "unpaired_modes": skipped}
-
-
-#: a fitted constant more than this factor from nominal is not identified (issue 12)
-RUNAWAY = 10.0
-#: the fit's box: moduli and density within this factor of nominal, Poisson ratios in (0, POISSON_MAX)
-BOX = 20.0
-POISSON_MAX = 1.0
-
-
-def bounds(ctx: FitContext) -> dict[str, tuple[float, float]]:
-    """The box the fit stays in ({name: (low, high)}, SI): moduli within BOX x of nominal,
-    Poisson ratios in (0, POISSON_MAX); the positive-definite stiffness is checked by the
-    forward models themselves (PhysicsError)."""
-    out = {}
-    for n, v in ctx.nominal.items():
-        out[n] = (0.0, POISSON_MAX) if n.startswith("nu") else (v / BOX, v * BOX)
-    return out
-
-
-def boxed(ctx: FitContext, blocks: Sequence[DataBlock]) -> list[DataBlock]:
-    """``blocks`` whose predictions raise ValueError outside :func:`bounds` (the
-    estimators then shorten the step: the fit stops at the bound, and is flagged)."""
-    box = bounds(ctx)
-
-    def guard(fn):
-        def wrapped(params, *a):
-            for n, v in params.items():
-                lo, hi = box.get(n, (-math.inf, math.inf))
-                if not lo < v < hi:
-                    raise ValueError(f"{n} = {v:.4g} outside the fit's box ({lo:.4g}, {hi:.4g})")
-            return fn(params, *a)
-        return wrapped
-
-    return [replace(b, predict=guard(b.predict), jacobian=None if b.jacobian is None else guard(b.jacobian))
-            for b in blocks]
-
-
-def admissibility(ctx: FitContext, params: Mapping[str, float], rel: float = 0.02) -> dict[str, str]:
-    """{name: reason} for constants more than RUNAWAY x from nominal, or at the edge of the
-    admissible region (a change of ``rel`` in either direction makes the 3D stiffness
-    non positive-definite or leaves a Poisson ratio's bounds)."""
-    nominal = ctx.nominal
-    mat = ctx.material_obj
-    out: dict[str, str] = {}
-    box = bounds(ctx)
-    for n, v in params.items():
-        ratio = v / nominal[n]
-        lo, hi = box[n]
-        if v <= lo + rel * (hi - lo) * (n.startswith("nu")) or v >= hi / (1.0 + rel):
-            out[n] = f"at the bound of the fit's box ({lo:.4g}, {hi:.4g})"
-            continue
-        if ratio > RUNAWAY or ratio < 1.0 / RUNAWAY:
-            out[n] = f"moved {ratio:.3g}x from nominal (more than {RUNAWAY:g}x)"
-            continue
-        for f in (1.0 + rel, 1.0 / (1.0 + rel)):
-            try:
-                mat.with_params(**{**params, n: v * f}).check()
-            except PhysicsError:
-                out[n] = "at the edge of the admissible region (positive-definite stiffness, Poisson bounds)"
-                break
-    return out
-
-
-def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True) -> tuple[Estimate, list[str]]:
-    """(Estimate with the ``fit`` verdict, notes).
-
-    ``fit``: chi2 and p-value against the sigmas as given (before any Birge scaling),
-    dof, ``consistent`` (p >= 1e-3), ``std_scale`` (the stds are multiplied by
-    sqrt(chi^2/nu) whenever chi^2/nu > 1: they grow monotonically with the misfit),
-    ``flags`` ({parameter: reason}: runaway or at the admissible edge) and
-    ``identified`` (consistent and every parameter identified). A constant is
-    identified only when its relative std is below the threshold, it is not flagged and
-    the fit is consistent.
-    """
-    fwd = ctx.modal_forward
-    unexplained = 0
-    if fwd is not None and getattr(fwd, "assignment", None) is not None:
-        unexplained = int(np.sum(fwd.assignment.index < 0))   # set aside: no residual, no point
-    fit = checks.goodness(est, unexplained)
-    scale = est.sigma_scale or {}
-    chi2_scaled = fit["chi2"]
-    if scale:   # the verdict judges the sigmas as stated, not as Birge-scaled
-        chi2 = sum(r["chi2"] * scale.get(r["kind"], 1.0) ** 2 for r in est.residuals.values())
-        fit = checks.goodness(est, unexplained, chi2)
-    notes: list[str] = []
-    factor = math.sqrt(chi2_scaled / fit["dof"]) if scale_sigmas and chi2_scaled > fit["dof"] else 1.0
-    est = checks.scale_uncertainty(est, factor)
-    fit["std_scale"] = factor * math.sqrt(max([v * v for v in scale.values()] or [1.0]))
-    flags = admissibility(ctx, est.params)
-    ident = dict(est.identifiability)
-    params = {}
-    for n, d in ident["parameters"].items():
-        d = dict(d)
-        if n in flags:
-            d["identified"], d["reason"] = False, flags[n]
-        elif not fit["consistent"]:
-            d["identified"], d["reason"] = False, "inconsistent fit"
-        elif not d["identified"]:
-            d["reason"] = f"relative std above {ident['rel_threshold']:g}"
-        params[n] = d
-    ident["parameters"] = params
-    ident["poorly_identified"] = [n for n in est.names if not params[n]["identified"]]
-    fit["flags"] = flags
-    fit["identified"] = bool(fit["consistent"] and not ident["poorly_identified"])
-    if not fit["consistent"]:
-        notes.append(f"INCONSISTENT fit: chi^2 = {fit['chi2']:.4g} for {fit['dof']} degrees of freedom "
-                     f"(chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g} < 1e-3): a local "
-                     "minimum, a wrong mode pairing, or a model/data mismatch (see labid diagnose); "
-                     "no constant is reported as identified")
-    for n, why in flags.items():
-        notes.append(f"{n} {why}: not identified")
-    if factor > 1.0:
-        notes.append(f"stds scaled by sqrt(chi^2/nu) = {factor:.3g}")
-    return replace(est, identifiability=ident, fit=fit), notes
-
 
 
 def discretisation(laminate, length: float, width: float, masses, model, material: str | None, n: int):

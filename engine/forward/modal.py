@@ -109,6 +109,8 @@ class ModalForward:
         self.labels = None if labels is None else list(labels)
         self.assignment: Assignment | None = None
         self.visible: np.ndarray | None = None
+        #: per measured peak, the estimated discretisation error left after the correction (Hz)
+        self.model_error_hz: np.ndarray | None = None
         #: per predicted mode (ascending), f_fine / f_model: the discretisation correction
         #: (engine.plate.convergence.mode_corrections); None = the model's own frequencies
         self.correction = None if correction is None else np.asarray(correction, float)
@@ -292,6 +294,7 @@ def modal_block(model, frequencies_hz, sigma_hz, *, points=None, shapes=None,
         rank = np.argsort(np.argsort(f))
         e = np.array([err[min(r, err.size - 1):min(r + 3, err.size)].max() for r in rank])
         sig = np.sqrt(sig ** 2 + (e * f) ** 2)
+        fwd.model_error_hz = e * f     # systematic (same sign for every mode): see identify.py
     if like:
         fwd.sigma_obs = sig
     return DataBlock(name, f, sig, fwd.predict, fwd.jacobian, kind="modal"), fwd
