@@ -96,7 +96,7 @@ class ModalForward:
     def __init__(self, model, n_measured: int, *, points=None, shapes=None,
                  material: str | None = None, n_extra: int = 4, min_mac: float = 0.6,
                  correction: np.ndarray | None = None, observed=None, sigma=None,
-                 response_points=None, drive_points=None, tau0: float = 0.02, labels=None):
+                 response_points=None, drive_points=None, tau0: float = 0.005, labels=None):
         self.model, self.n, self.material = model, int(n_measured), material
         #: likelihood pairing (engine.forward.pairing) when the measured frequencies are
         #: given and no shapes: missing and spurious peaks allowed; the assignment is
