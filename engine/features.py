@@ -86,7 +86,7 @@ class Features:
     waves: tuple[WaveData, ...] = ()
     material: str | None = None
     specimen_name: str = ""
-    #: predicted elastic-mode number (>= 1) of each modal peak, None where unknown;
+    #: predicted elastic-mode index (0-based) of each modal peak, None where unknown;
     #: None when the document gives none (features ``modal.mode_index``)
     mode_index: tuple[int | None, ...] | None = None
 

@@ -15,8 +15,8 @@ from . import cluster, services
 from .budget import budget_text, identify_budget
 from .cmdutil import add_json_option
 from .errors import UserError
-from .identification import (METHODS, load_problem, multi_start, load_features,
-                             parse_assignments, plot_multi_start, random_starts, run, start_values)
+from .identification import (METHODS, distinct_minima, load_problem, minima_summary, multi_start, load_features,
+                             parse_assignments, plot_multi_start, random_starts, result_dict, run, start_values)
 
 
 def register(sub) -> None:
@@ -43,6 +43,9 @@ def register(sub) -> None:
     p.add_argument("--mcmc", type=int, default=0, metavar="STEPS",
                    help="also sample the full posterior by MCMC (emcee) with STEPS steps per walker")
     p.add_argument("--csv", metavar="DIR", help="also write the constants as DIR/constants.csv")
+    p.add_argument("--strict", action="store_true",
+                   help="exit 3 (after writing the outputs) when the fit is inconsistent with its data "
+                        "(chi^2 p-value < 1e-3)")
     add_json_option(p)
     p.set_defaults(func=_run)
 
@@ -69,7 +72,7 @@ def _identify(args: argparse.Namespace, client) -> dict:
     if args.starts < 0 or args.workers < 1:
         raise UserError("expected --starts >= 0 and --workers >= 1", key="--starts")
     est = run(problem, names, start, method=args.method, prior=args.prior)
-    out = est.to_dict()
+    out = result_dict(est)
     out["data"] = list(problem.kinds)
     if args.mcmc:
         if args.mcmc < 10:
@@ -80,13 +83,14 @@ def _identify(args: argparse.Namespace, client) -> dict:
                                             seed=args.seed).to_dict()
     out["specimen"] = problem.specimen.name
     if args.starts:
-        st0 = start_values(problem, est.names, start)
+        st0 = start_values(problem, est.names, {k: v for k, v in start.items() if k in est.names})
         starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
         doc = load_features(args.features)
         executor = client.get_executor() if client is not None else None
         results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
                               prior=args.prior, executor=executor, max_workers=args.workers)
         out["multi_start"] = results
+        out["multi_start_minima"] = distinct_minima(results, est.names)
         if args.plot:
             plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
     if args.json != "-":
@@ -95,6 +99,8 @@ def _identify(args: argparse.Namespace, client) -> dict:
     out["uncertainty_budget"] = identify_budget(problem, est, args.features)
     if args.json != "-":
         sys.stdout.write(budget_text(out["uncertainty_budget"]))
+    if args.strict and not out["fit"]["consistent"]:
+        args.exit_code = 3
     if note := services.store_for_features(args.features, "identification", out):
         sys.stderr.write(f"labid identify: {note}\n")
     if args.csv:
@@ -105,6 +111,15 @@ def _identify(args: argparse.Namespace, client) -> dict:
 
 def _print(out: dict, names) -> None:
     w = sys.stdout.write
+    fit = out["fit"]
+    if not fit["consistent"]:
+        w(f"INCONSISTENT FIT: chi^2/nu = {fit['chi2_per_dof']:.3g} (p = {fit['p_value']:.2g}): the constants "
+          "below are NOT identified\n")
+    elif not fit["identified"]:
+        w(f"fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g}); not identified: "
+          + ", ".join(out["identifiability"]["poorly_identified"]) + "\n")
+    else:
+        w(f"identified: fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g})\n")
     w(f"{out['specimen']}: data {'+'.join(out['data'])}, method {out['method']}, "
       f"{'converged' if out['converged'] else 'NOT converged'} in {out['iterations']} iterations\n")
     ident = out["identifiability"]["parameters"]
@@ -112,8 +127,11 @@ def _print(out: dict, names) -> None:
         v, s = out["parameters"][n]["value"], out["parameters"][n]["std"]
         unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
         flag = "" if ident[n]["identified"] else (
-            f"   (poorly identified; +-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
+            f"   (not identified: {ident[n].get('reason', 'poorly identified')})" if n in out.get("held", {})
+            else f"   (not identified: {ident[n].get('reason', 'poorly identified')}; "
+                 f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
         w(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}\n")
+
     r = out["residual"]
     w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
     for msg in out["warnings"]:
@@ -124,4 +142,7 @@ def _print(out: dict, names) -> None:
           + ", ".join(f"{n} std {ps['std'][n]:.3g}" for n in ps["names"]) + "\n")
     if "multi_start" in out:
         ok = sum(1 for m in out["multi_start"] if m.get("converged"))
-        w(f"  multi-start: {ok}/{len(out['multi_start'])} converged\n")
+        w(f"  {minima_summary(out['multi_start_minima'], len(out['multi_start']))} ({ok} converged)\n")
+        for k, m in enumerate(out["multi_start_minima"][:4]):
+            w(f"    minimum {k + 1}: " + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
+              + f"; chi^2/n {m['chi2_per_point']:.3g}; {m['n_starts']} start(s)\n")

@@ -21,9 +21,14 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from engine.features import Features
-from engine.fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
-                        nelder_mead_fit)
+from engine.fit import DataBlock, Estimate, IdentificationError, Prior
 from engine.forward import modal_block, wave_block
+from engine.forward.identify import (BOX, N_EXTRA_MODES, POISSON_MAX, RUNAWAY, FitContext, bounds, identifiable,
+                                     fit_blocks, pairing_report)
+from engine.forward.identify import admissibility as engine_admissibility
+from engine.forward.identify import discretisation as discretisation_error
+from engine.forward.identify import verdict as engine_verdict
+from engine.forward.modal import MIN_MAC_POINTS, extra_modes
 from engine.laminate import PhysicsError
 from engine.plate import PlateModel
 
@@ -32,7 +37,8 @@ from .features import parse_features
 from .specimen import MODULI, Specimen, unit_slip
 
 __all__ = ["Problem", "problem_from_features", "default_params", "parse_assignments", "start_values", "run",
-           "METHODS"]
+           "METHODS", "verdict", "admissibility", "RUNAWAY", "BOX", "POISSON_MAX", "result_dict", "bounds", "context",
+           "pairing_report"]
 
 METHODS = ("lm", "bayes", "nelder-mead")
 
@@ -67,12 +73,19 @@ class Problem:
 # ---------------------------------------------------------------------------
 def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str = "<features>",
                           specimen: Specimen | None = None, material: str | None = None,
-                          modal_model=None) -> Problem:
+                          modal_model=None, discretisation: bool = True) -> Problem:
     """Data blocks for whatever the features hold (modal, waves or both).
 
     Accelerometer masses of ``rig.accelerometers`` are added to the plate
     model as point masses. Wave points with a NaN group velocity (or sigma)
-    are dropped. ``modal_model`` may pass a prebuilt ``PlateModel`` (same specimen).
+    are dropped. ``modal_model`` may pass a prebuilt ``PlateModel`` (same specimen,
+    default mesh, with the rig's masses).
+
+    ``discretisation``: the plate model's modes are also solved once, at the nominal
+    constants, on a mesh 1.5x finer (``engine.plate.convergence``): every prediction is
+    corrected by the ratio f_fine / f_model of its mode, and the remaining error
+    (Richardson estimate) is added in quadrature to that mode's sigma, so that 40-60
+    measured modes fit as well as the first 12 (issue 12).
     """
     parsed = parse_features(doc, base_dir, src, specimen=specimen)
     spec, feats = parsed.specimen, parsed.features
@@ -99,8 +112,26 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
             if masses:
                 modal_model = modal_model.with_point_masses(masses)
                 notes.append(f"modal model includes {len(masses)} accelerometer mass(es)")
+        corr = err = None
+        n_extra = extra_modes(f.size, N_EXTRA_MODES)
+        if discretisation:
+            corr, err, note = discretisation_error(spec.laminate, spec.length, spec.width, feats.rig.masses(),
+                                                   modal_model, material, f.size + n_extra)
+            notes.append(note)
+        pairing = "order" if md.pairing == "order" else "likelihood"
+        resp = feats.rig.accelerometers or (md.points if md.points is not None else None)
+        drive = getattr(feats.rig, "hammer", None)   # not in the features yet: (x, y) m when it is
+        labels = feats.mode_index                    # optional peak labels (features modal.mode_index, 0-based)
+        # MAC pairing needs enough shape points (as engine.forward.model's 'auto'); with
+        # fewer (e.g. three accelerometers) the likelihood pairing is more reliable
+        use_mac = (md.shapes is not None and md.points is not None and len(md.points) >= MIN_MAC_POINTS
+                   and md.pairing in ("auto", "mac"))
         try:
-            blk, fwd = modal_block(modal_model, f, sig, points=md.points, shapes=md.shapes, material=material)
+            blk, fwd = modal_block(modal_model, f, sig, points=md.points if use_mac else None,
+                                   shapes=md.shapes if use_mac else None, material=material,
+                                   correction=corr, model_error_rel=err, pairing=pairing,
+                                   response_points=resp, drive_points=None if drive is None else [drive],
+                                   labels=labels, n_extra=n_extra)
         except IdentificationError as e:
             raise UserError(str(e), file=src, key="modal") from None
         blocks.append(blk)
@@ -202,8 +233,15 @@ def start_values(problem: Problem, names: Sequence[str], start: Mapping[str, flo
 # ---------------------------------------------------------------------------
 def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
         *, method: str = "lm", prior: float | Prior | None = None, max_iter: int = 60,
-        scale_sigmas: bool = True, consistency: bool = True) -> Estimate:
+        scale_sigmas: bool = True, consistency: bool = True, global_stage: bool = True,
+        hold: bool = True) -> Estimate:
     """Estimate ``names`` (default: :func:`default_params`) from ``problem``.
+
+    Without ``names``, the default constants the data cannot constrain from the start
+    (relative std above 30 %, engine.forward.identify.identifiable) are held at their
+    start value (nominal unless ``start`` gives one) with ``hold`` (issue 12), and the
+    result says so (``fit["held"]``). The stages and the verdict:
+    ``engine.forward.identify.fit_blocks`` (docs/identification.md).
 
     ``method``: ``lm`` (combined whitened least squares, Levenberg-Marquardt
     in log-parameters), ``bayes`` (Lai & Ip update, Eq. 20; ``prior`` is the
@@ -225,34 +263,47 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
     the data sets disagree beyond their sigmas and a warning names the
     parameters they pull apart most: the combined std is then optimistic.
     """
-    names = tuple(names) if names else default_params(problem)
-    _check_names(problem, names, "--params")
-    st = start_values(problem, names, start)
+    held = None
+    if names:
+        names = tuple(names)
+        _check_names(problem, names, "--params")
+        st = start_values(problem, names, start)
+    else:   # the defaults, less what the data cannot constrain from this start (held)
+        names = default_params(problem)
+        st = start_values(problem, names, start)
+        if hold:
+            try:
+                names, held = identifiable(problem.blocks, names, st)
+            except (IdentificationError, ValueError):
+                held = None
+            st = {n: st[n] for n in names}
     if method not in METHODS:
         raise UserError(f"method {method!r}: expected one of {list(METHODS)}", key="--method")
-    if problem.modal_forward is not None:
-        problem.modal_forward.reset_tracking()
-    try:
-        if method == "lm":
-            est = estimate(problem.blocks, names, st, prior=prior, max_iter=max_iter)
-        elif method == "bayes":
-            est = bayesian_update(problem.blocks, names, st,
-                                  prior_rel_std=0.5 if prior is None else prior, max_iter=max_iter)
-        else:
-            est = nelder_mead_fit(problem.blocks, names, st, prior=prior)
-    except IdentificationError as e:
-        raise UserError(str(e), file=problem.source) from None
-    scale_notes: list[str] = []
-    if scale_sigmas and method == "lm":
-        est, scale_notes = checks.birge_refit(problem.blocks, est, names, st, prior, max_iter)
-    if consistency and method == "lm" and len(problem.kinds) > 1:
-        scale_notes += checks.consistency(problem.blocks, est, names, prior, max_iter)
-    warnings = list(est.warnings) + list(problem.notes) + scale_notes
-    chi2 = sum(r["chi2"] for r in est.residuals.values())
-    n = sum(r["n"] for r in est.residuals.values())
-    if chi2 > 10.0 * n:
-        warnings.append(f"poor fit: chi^2/n = {chi2 / n:.3g} (expected ~1 with the stated sigmas): "
-                        "a local minimum, or a model/data mismatch (see labid diagnose)")
-    if problem.modal_forward is not None:
-        warnings += problem.modal_forward.warnings
-    return replace(est, warnings=tuple(warnings))
+    return fit_blocks(context(problem), problem.blocks, names, st, method=method, prior=prior, max_iter=max_iter,
+                      scale_sigmas=scale_sigmas, consistency=consistency, global_stage=global_stage,
+                      notes=problem.notes, on_error=lambda e: UserError(str(e), file=problem.source), held=held)
+
+
+def context(problem: Problem) -> FitContext:
+    """The engine's FitContext of a problem."""
+    mat = problem.specimen.laminate.materials[problem.material]
+    return FitContext(mat, problem.nominal, problem.isotropic, problem.specimen.length, problem.specimen.width,
+                      problem.modal_forward, problem.material)
+
+
+def verdict(problem: Problem, est: Estimate, *, scale_sigmas: bool = True) -> tuple[Estimate, list[str]]:
+    """The verdict of ``est`` (engine.forward.identify.verdict) for ``problem``."""
+    return engine_verdict(context(problem), est, scale_sigmas=scale_sigmas)
+
+
+def admissibility(problem: Problem, params: Mapping[str, float], rel: float = 0.02) -> dict[str, str]:
+    """{name: reason} of flagged constants (engine.forward.identify.admissibility)."""
+    return engine_admissibility(context(problem), params, rel)
+
+
+
+def result_dict(est: Estimate) -> dict:
+    """The ``labid identify`` JSON of an estimate (``Estimate.to_dict``): CONTRACT keys plus,
+    with the verdict, ``identified`` per parameter (and ``reason`` when not), the top-level
+    ``identified``, ``fit``, ``held`` and, when made, ``pairing`` / ``unpaired_modes``."""
+    return est.to_dict()

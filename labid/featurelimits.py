@@ -37,10 +37,11 @@ def check_keys(tab: Mapping, allowed: set[str], where: str, src: str) -> None:
 
 
 def mode_index(v: Any, n: int, src: str) -> list[int | None]:
-    """``modal.mode_index``: one elastic-mode number (int >= 1) or null per peak."""
+    """``modal.mode_index``: one predicted elastic-mode index (int >= 0; 0 = the first elastic
+    mode, as in identify's ``pairing``) or null per peak."""
     key = "modal.mode_index"
     if not isinstance(v, list) or len(v) != n:
-        raise UserError(f"value {v!r:.80}: expected a list of {n} mode numbers (int >= 1) or null, "
+        raise UserError(f"value {v!r:.80}: expected a list of {n} mode indices (int >= 0) or null, "
                         "one per frequency", file=src, key=key)
     out: list[int | None] = []
     for i, x in enumerate(v):
@@ -49,8 +50,8 @@ def mode_index(v: Any, n: int, src: str) -> list[int | None]:
             continue
         if isinstance(x, float) and x.is_integer():
             x = int(x)
-        if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= 100_000:
-            raise UserError(f"value {x!r}: expected an elastic-mode number (int >= 1) or null",
+        if isinstance(x, bool) or not isinstance(x, int) or not 0 <= x <= 100_000:
+            raise UserError(f"value {x!r}: expected an elastic-mode index (int >= 0, 0-based) or null",
                             file=src, key=f"{key}[{i}]")
         out.append(x)
     return out

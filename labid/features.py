@@ -8,7 +8,8 @@ inline. JSON has no NaN: a velocity that could not be measured is ``null``
 key (``waves[0].frequency_hz[3]``), the value and what was expected; so does an
 unknown key (``TOP_KEYS``, ``MODAL_KEYS``, ``WAVE_KEYS``, ``RIG_KEYS``; ``analysis`` is
 free-form). Values are bounded where they enter (``LIMITS``). ``modal.mode_index``
-(optional): the predicted elastic-mode number (>= 1) of each peak, or null.
+(optional): the predicted elastic-mode index (0-based, as identify's ``pairing``) of each
+peak, or null; a labelled peak is paired with that mode only.
 A ``specimen`` path must name a regular file of at most ``MAX_SPECIMEN_BYTES``.
 
 :func:`parse_features` is the one conversion of a document into the engine's

@@ -17,10 +17,10 @@ from typing import Mapping, Sequence
 
 from engine.fit import Estimate
 
-from .estimation import (METHODS, Problem, default_params, parse_assignments, problem_from_features, run,
-                         start_values)
+from .estimation import (METHODS, Problem, default_params, parse_assignments, problem_from_features,
+                         result_dict, run, start_values)
 from .features import DEFAULT_MODAL_SIGMA_REL, DEFAULT_WAVE_SIGMA_REL, parse_features, read_features
-from .multistart import multi_start, random_starts
+from .multistart import distinct_minima, minima_summary, multi_start, random_starts
 from .plots import plot_multi_start
 from .specimen import Specimen
 from .synthetic import synthetic_features
@@ -28,7 +28,8 @@ from .synthetic import synthetic_features
 __all__ = ["Problem", "load_problem", "problem_from_features", "default_params", "parse_assignments",
            "identify", "run", "start_values", "METHODS", "identify_variants", "load_features",
            "multi_start", "random_starts", "plot_multi_start", "synthetic_features",
-           "DEFAULT_MODAL_SIGMA_REL", "DEFAULT_WAVE_SIGMA_REL"]
+           "DEFAULT_MODAL_SIGMA_REL", "DEFAULT_WAVE_SIGMA_REL", "result_dict", "distinct_minima",
+           "minima_summary"]
 
 
 def load_features(path: str | Path) -> dict:

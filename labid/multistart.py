@@ -3,11 +3,13 @@
 ``random_starts`` draws the guesses; ``multi_start`` runs them through any
 ``concurrent.futures`` executor (a process pool by default, or a Dask
 ``Client.get_executor()``); each worker builds the forward models once and
-reuses them for its starts. Figures: ``labid.plots.plot_multi_start``.
+reuses them for its starts. ``distinct_minima`` clusters the end points and
+``minima_summary`` says what was found (issue 12). Figures: ``labid.plots.plot_multi_start``.
 """
 from __future__ import annotations
 
 import json
+import math
 from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
 from typing import Mapping, Sequence
@@ -20,7 +22,7 @@ from .features import specimen_of
 from .estimation import Problem, problem_from_features, run, start_values
 from .specimen import Specimen
 
-__all__ = ["random_starts", "multi_start"]
+__all__ = ["random_starts", "multi_start", "distinct_minima", "minima_summary"]
 
 
 _WORKER_CACHE: dict[str, Problem] = {}
@@ -43,9 +45,51 @@ def _job(spec: tuple) -> dict:
         return {"start": dict(start), "error": str(e)}
     chi2 = sum(r["chi2"] for r in est.residuals.values())
     n = sum(r["n"] for r in est.residuals.values())
+    fit = est.fit or {}
     return {"start": dict(start), "values": est.params, "std": dict(zip(est.names, est.std.tolist())),
             "converged": est.converged, "chi2_per_point": chi2 / n, "iterations": est.iterations,
-            "residual": est.residual_summary(), "seconds": est.seconds}
+            "residual": est.residual_summary(), "seconds": est.seconds,
+            "consistent": bool(fit.get("consistent", False)), "p_value": fit.get("p_value")}
+
+
+def distinct_minima(results: Sequence[Mapping], names: Sequence[str], rel_tol: float = 1e-3) -> list[dict]:
+    """The distinct end points of a multi-start study, best (lowest chi^2) first: each
+    ``{values, std, chi2_per_point, consistent, n_starts, starts}`` (``starts``: indices
+    into ``results``). Two end points are the same minimum when every constant agrees
+    within ``rel_tol`` or within 2 of their combined std."""
+    out: list[dict] = []
+    order = sorted((i for i, r in enumerate(results) if "values" in r), key=lambda i: results[i]["chi2_per_point"])
+    for i in order:
+        r = results[i]
+        for m in out:
+            same = True
+            for n in names:
+                a, b = r["values"][n], m["values"][n]
+                sd = math.hypot(r["std"].get(n, 0.0) or 0.0, m["std"].get(n, 0.0) or 0.0)
+                if not (abs(a / b - 1) <= rel_tol or (math.isfinite(sd) and abs(a - b) <= 2 * sd)):
+                    same = False
+                    break
+            if same:
+                m["n_starts"] += 1
+                m["starts"].append(i)
+                break
+        else:
+            out.append({"values": dict(r["values"]), "std": dict(r["std"]), "chi2_per_point": r["chi2_per_point"],
+                        "consistent": bool(r.get("consistent", False)), "n_starts": 1, "starts": [i]})
+    return out
+
+
+def minima_summary(minima: Sequence[Mapping], n_results: int) -> str:
+    """One line: how many distinct minima, from how many starts, and whether the best two
+    are both acceptable (consistent fits)."""
+    if not minima:
+        return f"multi-start: no start of {n_results} gave an estimate"
+    head = (f"multi-start: {len(minima)} distinct minim{'um' if len(minima) == 1 else 'a'} from {n_results} starts; "
+            + "; ".join(f"chi^2/n {m['chi2_per_point']:.3g} ({m['n_starts']} starts"
+                        f"{', consistent' if m['consistent'] else ''})" for m in minima[:4]))
+    if len(minima) > 1 and minima[0]["consistent"] and minima[1]["consistent"]:
+        head += "; the best two are BOTH acceptable: the data do not decide between them"
+    return head
 
 
 def random_starts(nominal: Mapping[str, float], names: Sequence[str], n: int, *,

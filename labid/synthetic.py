@@ -9,6 +9,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from engine.plate import PlateModel
+from engine.plate.convergence import reference_mesh
 from engine.safe import group_velocity
 
 from .features import DEFAULT_MODAL_SIGMA_REL, DEFAULT_WAVE_SIGMA_REL
@@ -29,6 +30,11 @@ def synthetic_features(specimen: str | Specimen = "cfrp", *, n_modes: int | None
     ``f_i = i fmax / n``. With ``noise``, Gaussian noise of the stated sigmas
     is added (seeded). ``params`` changes the true constants. The specimen is
     inlined as the built-in name when given by name.
+
+    The modes come from the converged reference mesh
+    (``engine.plate.convergence.reference_mesh``), as the simulated rig's do, unless
+    ``modal_model`` is given (then from that model: same-mesh data, which hide the
+    identification model's discretisation error -- only for tests of the estimator).
     """
     spec = load_specimen(specimen) if isinstance(specimen, str) else specimen
     lam = spec.laminate
@@ -37,7 +43,8 @@ def synthetic_features(specimen: str | Specimen = "cfrp", *, n_modes: int | None
     rng = np.random.default_rng(seed)
     doc: dict = {"specimen": specimen if isinstance(specimen, str) else None}
     if n_modes:
-        model = modal_model or PlateModel.build(spec.laminate, spec.length, spec.width)
+        model = modal_model or PlateModel.build(spec.laminate, spec.length, spec.width,
+                                                reference_mesh(spec.length, spec.width, lam.thickness))
         modes = model.solve(n_modes, params=dict(params) if params else None)
         f = modes.frequencies_hz
         sig = modal_sigma_rel * f

@@ -4,6 +4,11 @@ The plate modes of ``engine.plate`` (mass-normalised shapes phi) respond to a ha
 hammer force F(t) = F0 sin(pi t / T), 0 <= t <= T, at (xh, yh). Each mode is a damped
 oscillator q'' + 2 zeta w q' + w^2 q = phi(xh, yh) F(t), solved in closed form;
 accelerometer j reads sum_m phi_m(xj, yj) q_m''(t). Units SI (s, rad/s, m, kg, N/m).
+
+The modes come from the converged reference mesh (``engine.plate.convergence.reference_mesh``,
+2x the default elements per direction), not from the identification's default mesh: a
+simulated plate computed on the model's own mesh would hide the model's discretisation
+error (the "inverse crime"; issue 12).
 """
 from __future__ import annotations
 
@@ -13,13 +18,16 @@ import numpy as np
 
 from engine.laminate import Laminate
 from engine.plate import PlateModel
+from engine.plate.convergence import reference_mesh
 
 
 @functools.lru_cache(maxsize=16)
 def plate_modes(lam: Laminate, length: float, width: float, n_modes: int,
                 masses: tuple = (), springs: tuple = (), mesh=None):
-    """(PlateModel, Modes) for the plate with point masses/springs; cached."""
-    model = PlateModel.build(lam, length, width, mesh)
+    """(PlateModel, Modes) for the plate with point masses/springs; cached. ``mesh`` None:
+    the converged reference mesh."""
+    model = PlateModel.build(lam, length, width, mesh if mesh is not None
+                             else reference_mesh(length, width, lam.thickness))
     if masses:
         model = model.with_point_masses(masses)
     if springs:

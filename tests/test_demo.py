@@ -16,9 +16,14 @@ def test_demo_end_to_end(tmp_path, capsys):
     assert set(res["identified"]) == {"modal", "waves", "combined"}
     assert all(res["converged"].values())
     modal, comb = res["identified"]["modal"], res["identified"]["combined"]
-    # the stiff, well-determined constants from modal data alone (paper section 2)
+    # issue 12: the fit starts from datasheet values (17-22 % below the truth), on peaks
+    # from the rig's reference mesh: the stiff constants from modal data alone within
+    # 2 std (their std includes nu12 and G23, held under a weak prior when modal data
+    # cannot constrain them), E1 within 1 %
+    assert res["start"]["E1"] == 110e9
+    assert modal["E1"]["value"] == pytest.approx(truth["E1"], rel=0.01)
     for n in ("E1", "E2", "G12"):
-        assert modal[n]["value"] == pytest.approx(truth[n], rel=0.01), n
+        assert abs(modal[n]["value"] - truth[n]) <= 2 * modal[n]["std"], (n, modal[n], truth[n])
     # combined: every constant within 2 std of the truth (the uncertainty means something)
     for n in ("E1", "E2", "nu12", "G12", "G13", "G23"):
         p = comb[n]

@@ -168,7 +168,9 @@ def test_birge_ratio_widens_understated_sigmas():
     assert 3.0 < chi2_n < 10.0
     scaled = run(prob, ("E", "G"), {"E": 80e9, "G": 30e9})
     assert scaled.sigma_scale["waves"] == pytest.approx(np.sqrt(chi2_n), rel=1e-6)
-    np.testing.assert_allclose(scaled.std / plain.std, np.sqrt(chi2_n), rtol=0.02)
+    # issue 12: the std grows as sqrt(chi^2/nu), nu = 40 points - 2 parameters
+    np.testing.assert_allclose(scaled.std / plain.std, np.sqrt(chi2_n * 40 / 38), rtol=0.02)
+    assert scaled.fit["std_scale"] == pytest.approx(np.sqrt(chi2_n * 40 / 38), rel=0.02)
     np.testing.assert_allclose(scaled.values, plain.values, rtol=1e-6)
     assert any("Birge" in m for m in scaled.warnings)
 
@@ -214,4 +216,6 @@ def test_multi_start_equals_single_runs_on_combined_data():
         assert r["converged"] and est.converged
         for n in ("E", "G"):
             assert r["values"][n] == pytest.approx(est.params[n], rel=1e-12)
-            assert r["values"][n] == pytest.approx(AL[n], rel=1e-6)
+            # modal data from the reference mesh (not the model's): the corrected model's
+            # remaining discretisation error (~1e-6 here) moves the estimate by as much
+            assert r["values"][n] == pytest.approx(AL[n], rel=1e-4)

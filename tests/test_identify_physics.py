@@ -36,8 +36,8 @@ def cfrp():
     spec = load_specimen("cfrp")
     assert spec.laminate.plies[0].material.params() == pytest.approx({**CFRP_TRUE, "density": 1560.0})
     model = PlateModel.build(spec.laminate, spec.length, spec.width)
-    doc = synthetic_features("cfrp", n_modes=10, waves=(("A0", 0.0, 200e3, 20), ("A0", 90.0, 200e3, 20)),
-                             modal_model=model)
+    # modes from the converged reference mesh (as the simulated rig), not from ``model``
+    doc = synthetic_features("cfrp", n_modes=10, waves=(("A0", 0.0, 200e3, 20), ("A0", 90.0, 200e3, 20)))
     return spec, model, doc
 
 
@@ -100,8 +100,11 @@ def test_modal_only_and_combined_cfrp(cfrp):
     modal = run(problem_from_features(_modal_only(doc), specimen=spec, modal_model=model), SIX, FAR)
     assert modal.converged
     err = _rel_err(modal, CFRP_TRUE)
+    # data from the reference mesh, not the model's own: within 2 std (E2 and G12 share
+    # their marginal std with nu12), and E1 within 0.5 %
+    assert abs(err["E1"]) < 5e-3, err
     for n in ("E1", "E2", "G12"):
-        assert abs(err[n]) < 5e-3, (n, err)
+        assert abs(err[n]) < 2 * modal.rel_std[n], (n, err, modal.rel_std[n])
     # the paper's finding: frequencies hardly see nu12, G13, G23 on a thin plate
     rel = modal.rel_std
     poorly = modal.identifiability["poorly_identified"]
@@ -122,14 +125,19 @@ def test_modal_only_and_combined_cfrp(cfrp):
         assert both.rel_std[n] * 5 <= rel[n], (n, both.rel_std[n], rel[n])
         assert "waves" in both.identifiability["parameters"][n]["constrained_by"]
     r = both.residual_summary()
-    assert r["modal_rms_rel"] < 1e-6 and r["waves_rms_rel"] < 1e-6
+    # modal data from the reference mesh: the corrected model's remaining discretisation
+    # error (Richardson estimate, engine.plate.convergence) bounds the misfit; the waves are
+    # exact but share the constants that misfit moves: within 1 % of their 1 % sigma
+    disc = problem_from_features(doc, specimen=spec, modal_model=model).blocks[0]
+    bound = float(np.sqrt(np.mean((disc.sigma / disc.observed) ** 2 - 1e-6)))
+    assert r["modal_rms_rel"] < bound and r["waves_rms_rel"] < 1e-4
 
 
 @pytest.mark.slow
 def test_combined_with_noise_truth_within_two_std(cfrp):
     spec, model, _ = cfrp
     doc = synthetic_features("cfrp", n_modes=10, waves=(("A0", 0.0, 200e3, 20), ("A0", 90.0, 200e3, 20)),
-                             noise=True, seed=7, modal_model=model)
+                             noise=True, seed=7)
     est = run(problem_from_features(doc, specimen=spec, modal_model=model), SIX, FAR)
     assert est.converged
     for n, v, s in zip(est.names, est.values, est.std):
@@ -141,7 +149,7 @@ def test_mac_pairing_survives_a_missed_mode(cfrp):
     """Peak picking missed mode 4 (on a nodal line): MAC pairing still recovers the
     constants; pairing by order cannot fit the data."""
     spec, model, _ = cfrp
-    doc = synthetic_features("cfrp", n_modes=10, waves=(), with_shapes=True, modal_model=model)
+    doc = synthetic_features("cfrp", n_modes=10, waves=(), with_shapes=True)
     keep = [i for i in range(10) if i != 3]
     m = doc["modal"]
     m["frequencies_hz"] = [m["frequencies_hz"][i] for i in keep]
@@ -155,9 +163,13 @@ def test_mac_pairing_survives_a_missed_mode(cfrp):
         assert abs(e) < 5e-3, (n, e)
     assert prob.modal_forward.pairing.tolist() == [0, 1, 2, 4, 5, 6, 7, 8, 9]
     assert prob.modal_forward.mac_values.min() > 0.99
+    # without shapes: the likelihood pairing (issue 12) skips the missing mode too, where
+    # pairing by order (before) left a 1 % rms misfit, 1000x the 0.1 % sigma
     del m["mode_shapes"]
-    by_order = run(problem_from_features(doc, specimen=spec, modal_model=model), ("E1", "E2", "G12"), start)
-    assert by_order.residual_summary()["modal_rms_rel"] > 0.01  # 1000x the 0.1 % sigma
+    prob = problem_from_features(doc, specimen=spec, modal_model=model)
+    by_freq = run(prob, ("E1", "E2", "G12"), start)
+    assert by_freq.residual_summary()["modal_rms_rel"] < 1e-4 and by_freq.fit["consistent"]
+    assert prob.modal_forward.assignment.index.tolist() == [0, 1, 2, 4, 5, 6, 7, 8, 9]
 
 
 @pytest.mark.slow

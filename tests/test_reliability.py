@@ -564,7 +564,7 @@ def test_features_mode_index_round_trips_and_is_checked(tmp_path):
     assert pf.features.mode_index == (1, None, 3)
     assert features_document(pf.features, "aluminium")["modal"]["mode_index"] == [1, None, 3]
     assert parse_features({**doc, "modal": {"frequencies_hz": [20.0]}}).features.mode_index is None
-    for bad in ([0, 1, 2], [1, 2], [1.5, 2, 3], ["1", 2, 3]):
+    for bad in ([-1, 1, 2], [1, 2], [1.5, 2, 3], ["1", 2, 3]):
         with pytest.raises(UserError, match="modal.mode_index"):
             validate_features({**doc, "modal": {"frequencies_hz": [20.0, 30.0, 45.0], "mode_index": bad}})
     with pytest.raises(UserError) as ei:

@@ -15,13 +15,14 @@ Public seam:
   ``nelder_mead_fit`` (Eq. 29);
 * uncertainty (:mod:`.uncertainty`): ``Estimate``, ``laplace``,
   ``identifiability``;
-* checks of a combined fit (:mod:`.checks`): ``birge_refit``, ``consistency``;
+* checks of a combined fit (:mod:`.checks`): ``birge_refit``, ``consistency``,
+  ``goodness`` (chi2, dof, p-value, consistent), ``scale_uncertainty``;
 * full posterior (:mod:`.mcmc`, needs emcee): ``Posterior``, ``sample_posterior``.
 
 Package-internal: ``finish_estimate`` (uncertainty) and ``levenberg_marquardt``
 (lm) are shared by the estimators.
 """
-from .checks import birge_refit, consistency
+from .checks import P_CONSISTENT, birge_refit, consistency, goodness, scale_uncertainty
 from .estimators import bayesian_update, estimate, nelder_mead_fit
 from .mcmc import Posterior, sample_posterior
 from .problem import (Coords, DataBlock, IdentificationError, Params, Prior, Problem, check_start,
@@ -30,5 +31,5 @@ from .uncertainty import Estimate, identifiability, laplace
 
 __all__ = ["DataBlock", "Prior", "IdentificationError", "Params", "Problem", "Coords", "check_start",
            "prior_arrays", "whitened_jacobian", "linearised_block", "estimate", "bayesian_update",
-           "nelder_mead_fit", "Estimate", "laplace", "identifiability", "birge_refit", "consistency",
+           "nelder_mead_fit", "Estimate", "laplace", "identifiability", "birge_refit", "consistency", "goodness", "scale_uncertainty", "P_CONSISTENT",
            "Posterior", "sample_posterior"]

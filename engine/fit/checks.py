@@ -19,7 +19,43 @@ from .estimators import estimate
 from .problem import DataBlock, IdentificationError, Prior
 from .uncertainty import Estimate
 
-__all__ = ["birge_refit", "consistency"]
+__all__ = ["birge_refit", "consistency", "goodness", "scale_uncertainty", "P_CONSISTENT"]
+
+#: a fit whose chi^2 has a p-value below this is inconsistent with its sigmas (issue 12)
+P_CONSISTENT = 1e-3
+
+
+def goodness(est: Estimate, excluded: int = 0, chi2: float | None = None) -> dict:
+    """The fit verdict: ``chi2`` (whitened misfit of all data, prior rows excluded; or as
+    given), ``dof`` (points - ``excluded`` points set aside - fitted parameters, at least
+    1), ``chi2_per_dof``, ``p_value`` (chi^2 survival function) and ``consistent``
+    (p >= P_CONSISTENT)."""
+    # scipy.stats: see consistency() for why it is imported here
+    from scipy.stats import chi2 as chi2_dist  # noqa: PLC0415
+    if chi2 is None:
+        chi2 = float(sum(r["chi2"] for r in est.residuals.values()))
+    n = int(sum(r["n"] for r in est.residuals.values())) - int(excluded)
+    dof = max(n - len(est.names), 1)
+    p = float(chi2_dist.sf(chi2, dof))
+    return {"chi2": chi2, "dof": dof, "n_points": n, "chi2_per_dof": chi2 / dof, "p_value": p,
+            "consistent": bool(p >= P_CONSISTENT)}
+
+
+def scale_uncertainty(est: Estimate, factor: float) -> Estimate:
+    """``est`` with std (and covariance) multiplied by ``factor`` (>= 1), and the
+    identifiability report's relative stds with it."""
+    if not factor > 1.0:
+        return est
+    ident = dict(est.identifiability)
+    params = {}
+    for n, d in ident["parameters"].items():
+        d = dict(d)
+        d["rel_std"] = d["rel_std"] * factor
+        d["identified"] = bool(d["identified"] and d["rel_std"] < ident["rel_threshold"])
+        params[n] = d
+    ident["parameters"] = params
+    ident["poorly_identified"] = [n for n in est.names if not params[n]["identified"]]
+    return replace(est, std=est.std * factor, cov=est.cov * factor ** 2, identifiability=ident)
 
 
 def birge_refit(blocks: Sequence[DataBlock], est: Estimate, names: Sequence[str],

@@ -40,6 +40,7 @@ class Estimate:
     warnings: tuple[str, ...] = ()
     seconds: float = 0.0
     sigma_scale: dict = None  # per data kind, when sigmas were inflated (Birge ratio)
+    fit: dict = None          # the verdict (engine.fit.checks.goodness, plus flags), when made
 
     @property
     def params(self) -> dict[str, float]:
@@ -60,7 +61,7 @@ class Estimate:
 
     def to_dict(self) -> dict:
         """JSON-ready summary (CONTRACT section 3 keys plus the details)."""
-        return {
+        out = {
             "parameters": {n: {"value": float(v), "std": float(s)}
                            for n, v, s in zip(self.names, self.values, self.std)},
             "converged": bool(self.converged),
@@ -79,6 +80,20 @@ class Estimate:
             "message": self.message,
             "history": list(self.history),
         }
+        if self.fit is not None:   # the verdict (labid.estimation.verdict): spread over the keys
+            fit = dict(self.fit)
+            ident = self.identifiability["parameters"]
+            for n, d in out["parameters"].items():
+                d["identified"] = bool(ident[n]["identified"])
+                if not d["identified"]:
+                    d["reason"] = ident[n].get("reason", "poorly identified")
+            out["identified"] = bool(fit.get("identified", False))
+            out["held"] = fit.pop("held", {})
+            for key in ("pairing", "unpaired_modes"):
+                if key in fit:
+                    out[key] = fit.pop(key)
+            out["fit"] = fit
+        return out
 
 
 

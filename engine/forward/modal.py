@@ -20,9 +20,10 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from ..fit import DataBlock, IdentificationError
+from .pairing import Assignment, assign, visibility
 
 __all__ = ["mac", "pair_by_mac", "pair_by_frequency", "ModalSolution", "ModalForward", "SelectedModes",
-           "modal_block", "MIN_MAC_POINTS", "PAIR_REL_FREQ"]
+           "modal_block", "MIN_MAC_POINTS", "PAIR_REL_FREQ", "extra_modes"]
 
 #: fewer shape points than this: measured modes are paired once, at the nominal
 #: model, by log-frequency distance / PAIR_REL_FREQ + (1 - MAC) (Hungarian)
@@ -93,15 +94,33 @@ class ModalForward:
     """
 
     def __init__(self, model, n_measured: int, *, points=None, shapes=None,
-                 material: str | None = None, n_extra: int = 4, min_mac: float = 0.6):
+                 material: str | None = None, n_extra: int = 4, min_mac: float = 0.6,
+                 correction: np.ndarray | None = None, observed=None, sigma=None,
+                 response_points=None, drive_points=None, tau0: float = 0.005, labels=None):
         self.model, self.n, self.material = model, int(n_measured), material
+        #: likelihood pairing (engine.forward.pairing) when the measured frequencies are
+        #: given and no shapes: missing and spurious peaks allowed; the assignment is
+        #: fixed between calls of :meth:`repair` (the fit's outer loop), -1 = unexplained
+        self.observed = None if observed is None or shapes is not None else np.asarray(observed, float)
+        self.sigma_obs = None if sigma is None else np.broadcast_to(np.asarray(sigma, float), (self.n,))
+        self.response_points = None if response_points is None else np.asarray(response_points, float)
+        self.drive_points = None if drive_points is None else np.asarray(drive_points, float)
+        self.tau0 = tau0
+        self.labels = None if labels is None else list(labels)
+        self.assignment: Assignment | None = None
+        self.visible: np.ndarray | None = None
+        #: per measured peak, the estimated discretisation error left after the correction (Hz)
+        self.model_error_hz: np.ndarray | None = None
+        #: per predicted mode (ascending), f_fine / f_model: the discretisation correction
+        #: (engine.plate.convergence.mode_corrections); None = the model's own frequencies
+        self.correction = None if correction is None else np.asarray(correction, float)
         self.points = None if points is None else np.asarray(points, float)
         self.shapes = None if shapes is None else np.asarray(shapes, float)
         if self.shapes is not None:
             if self.points is None or self.shapes.shape != (self.n, len(self.points)):
                 raise IdentificationError(
                     f"mode_shapes: expected values of shape ({self.n}, n_points) with points (n_points, 2)")
-        self.n_solve = self.n + (n_extra if self.shapes is not None else 0)
+        self.n_solve = self.n + (n_extra if self.shapes is not None or self.observed is not None else 0)
         self.min_mac = min_mac
         self._cache: tuple | None = None
         self._ref_shapes: np.ndarray | None = None
@@ -124,6 +143,11 @@ class ModalForward:
             if low.size:
                 found.append(f"modal: weak MAC pairing for measured mode(s) {low.tolist()} "
                              f"(MAC {np.round(mv[low], 2).tolist()})")
+        elif self.observed is not None:
+            if self.assignment is None:
+                self._assign(modes, self.tau0)
+            idx = self.assignment.index
+            self.pairing = idx
         else:
             idx = np.arange(self.n)
             phi = modes.shapes[:, :self.n].T
@@ -143,22 +167,77 @@ class ModalForward:
         self._cache = (key, sol)
         return sol
 
+    @property
+    def likelihood_pairing(self) -> bool:
+        return self.observed is not None
+
+    def _assign(self, modes, tau: float) -> Assignment:
+        if self.response_points is not None and len(self.response_points):
+            self.visible = visibility(self.model, modes, self.response_points, self.drive_points)
+        a = assign(self.observed, self.sigma_obs if self.sigma_obs is not None else 1e-3 * self.observed,
+                   self.corrected_hz(modes), self.visible, tau, fixed=self.labels)
+        self.assignment = a
+        return a
+
+    def repair(self, params: Mapping[str, float], tau: float) -> bool:
+        """Re-pair (likelihood pairing) at ``params`` with relative tolerance ``tau``;
+        True when the assignment changed. The cached solution is dropped."""
+        old = None if self.assignment is None else self.assignment.index.copy()
+        modes = self.model.solve(self.n_solve, params=dict(params), material=self.material)
+        a = self._assign(modes, tau)
+        self._cache = None
+        return old is None or not np.array_equal(old, a.index)
+
+    def repair_fixed(self, index: np.ndarray) -> None:
+        """Set the likelihood assignment's peak -> mode index (-1: unexplained) directly."""
+        self.assignment = self.assignment._replace(index=np.asarray(index, int))
+        self._cache = None
+
+    def repair_fixed_assignment(self, assignment: Assignment) -> None:
+        """Restore a whole likelihood assignment (e.g. the one of the best of several fits)."""
+        self.assignment, self._cache = assignment, None
+
+    def reset_pairing(self) -> None:
+        """Forget the likelihood assignment (the next solve pairs afresh at tau0)."""
+        self.assignment, self._cache = None, None
+
     def reset_tracking(self) -> None:
         """Forget the warnings and the reference shapes of the mode-switching check
         (the next solve becomes the reference), e.g. before a new fit."""
         self.warnings.clear()
         self._ref_shapes = None
 
+    def corrected_hz(self, modes) -> np.ndarray:
+        """Frequencies (Hz) of ``modes`` (ascending) with the discretisation correction."""
+        f = modes.frequencies_hz
+        if self.correction is None:
+            return f
+        c = np.ones(f.size)
+        k = min(f.size, self.correction.size)
+        c[:k] = self.correction[:k]
+        return f * c
+
     def predict(self, params: Mapping[str, float]) -> np.ndarray:
         sol = self.solve(params)
-        return sol.modes.frequencies_hz[sol.index]
+        idx = sol.index
+        f = self.corrected_hz(sol.modes)[np.maximum(idx, 0)]
+        if self.observed is not None:   # an unexplained peak predicts itself (no residual)
+            f = np.where(idx >= 0, f, self.observed)
+        return f
 
     def jacobian(self, params: Mapping[str, float], names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
         modes, idx, _ = self.solve(params)
+        ok = idx >= 0
+        j = np.maximum(idx, 0)
         dlam = self.model.eigen_sensitivities(modes, list(names), params=dict(params),
-                                              material=self.material)[idx]
-        f = modes.frequencies_hz[idx]
-        return f, dlam / (8.0 * np.pi ** 2 * f)[:, None]
+                                              material=self.material)[j]
+        f0 = modes.frequencies_hz[j]
+        f = self.corrected_hz(modes)[j]
+        J = (f / f0)[:, None] * dlam / (8.0 * np.pi ** 2 * f0)[:, None]
+        if not ok.all():
+            f = np.where(ok, f, self.observed)
+            J[~ok] = 0.0
+        return f, J
 
 
 class SelectedModes:
@@ -180,10 +259,42 @@ class SelectedModes:
         return ModalSolution(sol.modes, sol.index[self.sel], sol.warnings)
 
 
+def extra_modes(n_measured: int, n_extra: int = 4) -> int:
+    """Predicted modes solved beyond the measured count under likelihood pairing (room
+    for missing modes: at least 8, a quarter of the peaks)."""
+    return max(n_extra, 8 + n_measured // 4)
+
+
 def modal_block(model, frequencies_hz, sigma_hz, *, points=None, shapes=None,
-                material: str | None = None, name: str = "modal", n_extra: int = 4
+                material: str | None = None, name: str = "modal", n_extra: int = 4,
+                correction: np.ndarray | None = None, model_error_rel: np.ndarray | None = None,
+                pairing: str = "order", response_points=None, drive_points=None, labels=None
                 ) -> tuple[DataBlock, ModalForward]:
-    """Natural-frequency data block (Hz) and its forward model (for warnings/pairing)."""
+    """Natural-frequency data block (Hz) and its forward model (for warnings/pairing).
+
+    ``correction`` (per predicted mode, ascending): f_fine / f_model, applied to every
+    prediction; ``model_error_rel`` (same length): the relative error remaining after it,
+    added in quadrature to each measured mode's sigma: the largest error among the predicted
+    modes of the same rank and the two above (missing modes only move a peak's partner up).
+    ``pairing``: ``order`` (mode i with predicted mode i) or ``likelihood``
+    (:mod:`engine.forward.pairing`, with the modes' visibility at ``response_points`` and
+    ``drive_points``, m; ``labels``: per peak a predicted mode index or None, kept fixed);
+    ignored when ``shapes`` are given (MAC)."""
     f = np.asarray(frequencies_hz, float)
-    fwd = ModalForward(model, len(f), points=points, shapes=shapes, material=material, n_extra=n_extra)
-    return DataBlock(name, f, sigma_hz, fwd.predict, fwd.jacobian, kind="modal"), fwd
+    sig = np.broadcast_to(np.asarray(sigma_hz, float), f.shape)
+    like = pairing == "likelihood" and shapes is None
+    fwd = ModalForward(model, len(f), points=points, shapes=shapes, material=material,
+                       n_extra=n_extra if not like else extra_modes(len(f), n_extra),
+                       correction=correction, observed=f if like else None, sigma=sig if like else None,
+                       response_points=response_points, drive_points=drive_points, labels=labels)
+    if model_error_rel is not None:
+        err = np.asarray(model_error_rel, float)
+        # the error of the measured mode's most likely partner: the mode of the same rank
+        # or above (missing modes only push the partner up); the max over ranks i..i+2
+        rank = np.argsort(np.argsort(f))
+        e = np.array([err[min(r, err.size - 1):min(r + 3, err.size)].max() for r in rank])
+        sig = np.sqrt(sig ** 2 + (e * f) ** 2)
+        fwd.model_error_hz = e * f     # systematic (same sign for every mode): see identify.py
+    if like:
+        fwd.sigma_obs = sig
+    return DataBlock(name, f, sig, fwd.predict, fwd.jacobian, kind="modal"), fwd
