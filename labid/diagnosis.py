@@ -104,6 +104,29 @@ def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<fea
     return replace(feats, modal=modal, waves=tuple(waves)), notes
 
 
+#: relative amplitude at the response points below which a mode is 'barely seen'
+#: (engine.forward.pairing's V_SEEN: the penalty for skipping it falls below a full miss)
+BARELY_SEEN = 0.25
+
+
+def pairing_findings(ident: Mapping) -> list[str]:
+    """``where`` entries from identify's pairing (JSON ``pairing`` / ``unpaired_modes``):
+    a predicted in-band mode without a peak (and whether the response point barely sees
+    it), a peak that matches no mode. Mode and peak numbers 1-based, as in the text."""
+    out = []
+    for u in ident.get("unpaired_modes") or []:
+        vis = u.get("visibility")
+        seen = (f", which the response point barely sees (relative amplitude {vis:.2f})"
+                if vis is not None and vis < BARELY_SEEN else "")
+        out.append(f"predicted mode {int(u['mode_index']) + 1} near {float(u['predicted_hz']):.1f} Hz "
+                   f"has no measured peak{seen} (identify's pairing)")
+    for r in ident.get("pairing") or []:
+        if r.get("mode_index") is None and r.get("measured_hz") is not None:
+            out.append(f"peak {int(r['peak']) + 1} ({float(r['measured_hz']):.1f} Hz) matches no mode: "
+                       "suspension, harmonic or electrical? (identify's pairing)")
+    return out
+
+
 def start_estimate(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
                    names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
                    prior: float | None = None) -> StartEstimate:
@@ -122,11 +145,12 @@ def start_estimate(doc: Mapping, base_dir: str | Path = ".", src: str = "<featur
     # identify's own peak -> mode assignment, when it reports one (issue 12: JSON ``pairing``)
     report = est.to_dict().get("pairing")
     mode_index = None
-    if pairing == "order" and isinstance(report, list) and report and all(
+    # (whatever the shapes: identify pairs by MAC only with >= 6 shape points, else by likelihood)
+    if isinstance(report, list) and report and all(
             isinstance(r, Mapping) and "mode_index" in r for r in report):
         mode_index = tuple(None if r["mode_index"] is None else int(r["mode_index"]) for r in report)
         pairing = "identify"
-    return StartEstimate(names=tuple(est.names), params=est.params,
+    return StartEstimate(names=tuple(est.names), params=est.params, findings=tuple(pairing_findings(est.to_dict())),
                          std={n: float(s_) for n, s_ in zip(est.names, est.std)},
                          converged=bool(est.converged), message=est.message, iterations=int(est.iterations),
                          prior_rel_std=prior, prior_mean=st,
@@ -155,6 +179,8 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
         with bar:
             res = diagnose(problem, options, start=st, progress=step).to_dict()
         res["notes"] = notes + list(st.warnings)
+        # pairing as a cause (issue 13): what identify's own pairing set aside leads `where`
+        res["where"] = [w for w in st.findings if w not in res["where"]] + list(res["where"])
         return res
     except PhysicsError as e:
         raise UserError(f"unphysical nominal constants: {e}", file=src, key="specimen") from None

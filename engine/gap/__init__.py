@@ -13,7 +13,7 @@ Public seam:
 * :mod:`.start`: ``StartEstimate`` (identify's estimate, the diagnosis' start), ``own_estimate``;
 * :mod:`.forward`: ``GapForward`` (``ForwardModel`` + real-plate effects, fixed pairing);
 * :mod:`.pairing`: ``pairing_check``, ``propose_pairing`` (pairing as a cause);
-* :mod:`.convergence`: ``discretisation_error`` (per-mode FE error from two meshes).
+* :mod:`.convergence`: ``peak_corrections`` (the identification's per-mode mesh correction and error).
 
 The effect registry is ``engine.forward.EFFECTS``.
 """
@@ -26,9 +26,9 @@ from .where import GroupStat, feature_labels
 from .start import StartEstimate, own_estimate
 from .forward import GapForward
 from .pairing import PairingCheck, pairing_check, propose_pairing
-from .convergence import discretisation_error
+from .convergence import peak_corrections
 
 __all__ = ["diagnose", "GapOptions", "GapResult", "GapFigures", "RankedEffect", "Undetectable",
            "ConstantsChange", "FeatureResiduals", "gap_test", "feature_labels", "GroupStat", "Candidate",
            "screen", "Refit", "RefitError", "refit", "GapFit", "GapError", "StartEstimate", "own_estimate",
-           "GapForward", "PairingCheck", "pairing_check", "propose_pairing", "discretisation_error"]
+           "GapForward", "PairingCheck", "pairing_check", "propose_pairing", "peak_corrections"]

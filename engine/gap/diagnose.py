@@ -42,7 +42,7 @@ from ..features import Features
 from ..forward import EFFECTS, ForwardModel
 from ..forward.effects import ANGLE_EFFECTS, PLATE_EFFECTS
 from .candidates import Candidate, applies, screen
-from .convergence import discretisation_error
+from .convergence import peak_corrections
 from .forward import GapForward
 from .pairing import pairing_check
 from .refit import RefitError, refit
@@ -398,8 +398,10 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     model_sigma, notes = None, []
     if opts.discretisation and fw.n_modal and forward is None:
         try:
-            d = discretisation_error(fw, start.params)
+            ratio, d, note = peak_corrections(fw, start.params)
+            fw.peak_correction = ratio          # the identification's correction: same residuals
             model_sigma = np.concatenate([d, np.zeros(len(F0.y) - fw.n_modal)])
+            notes.append(note)
         except Exception as exc:  # noqa: BLE001 - the allowance falls back to the constant one
             notes.append(f"discretisation error not estimated ({exc}); constant model allowance only")
     F = GapFit(problem, fw, opts.model_rel_sigma, names=start.names, model_sigma=model_sigma)

@@ -51,6 +51,9 @@ class GapForward(ForwardModel):
                  pairing: str | None = None, selection=None):
         self.unexplained = None
         self._selection = None
+        #: per measured peak, the discretisation correction f_fine / f_default of its mode
+        #: (engine.gap.convergence.peak_corrections; None: uncorrected)
+        self.peak_correction = None
         if selection is not None and features.modal is not None:
             pairing = "order"
             self._selection = np.array([0 if j is None else int(j) for j in selection], int)
@@ -120,11 +123,11 @@ class GapForward(ForwardModel):
                             shapes=md.shapes, material=p.material)
 
     def predict_modal(self, params: Mapping[str, float], effects: Mapping[str, float]) -> np.ndarray:
-        if self.pairing is None and not any(effects.get(k, 0.0) for k in PLATE_EFFECTS):
-            return super().predict_modal(params, effects)
         stripped = {k: v for k, v in effects.items() if k not in PLATE_EFFECTS}
         par = temperature_params(params, stripped.get("temperature", 0.0))
         f0 = self.modal_forward_with(effects).predict(par)
+        if self.peak_correction is not None:
+            f0 = f0 * self.peak_correction
         eta = stripped.get("viscoelastic", 0.0)
         if eta:
             f0 = F_REF * (f0 / F_REF) ** (1.0 / (1.0 - eta / np.pi))

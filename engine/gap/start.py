@@ -46,6 +46,8 @@ class StartEstimate:
     source: str = "engine.fit.estimate"
     warnings: tuple[str, ...] = ()
     mode_index: tuple | None = None
+    #: identify's pairing findings (missing modes, unexplained peaks) for ``where``
+    findings: tuple = ()
 
 
 def identify_pairing(modal) -> str:
