@@ -35,9 +35,13 @@ def sim(tmp_path_factory) -> Path:
 
 
 def analysis_lines(run: Path, capsys) -> list[str]:
+    """The picked peaks of ``labid analyze RUN`` to the precision it used to print
+    (4 decimals in Hz, damping to 0.0001 %), from its features file."""
     capsys.readouterr()
-    assert main(["analyze", str(run), "--out", str(run.with_suffix(".json"))]) == 0
-    return [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("peak")]
+    out = run.with_suffix(".json")
+    assert main(["analyze", str(run), "--out", str(out)]) == 0
+    m = json.loads(out.read_text()).get("modal") or {}
+    return [f"peak {f:.4f} Hz {100 * z:.4f} %" for f, z in zip(m.get("frequencies_hz", []), m.get("damping_ratio", []))]
 
 
 def rig_file(tmp_path: Path, text: str = DEFAULT_RIG, name: str = "rig.toml") -> Path:

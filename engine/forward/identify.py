@@ -88,7 +88,7 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     like = fwd is not None and getattr(fwd, "likelihood_pairing", False)
     pair_notes: list[str] = []
     starts = [st]
-    if like and method == "lm" and global_stage:
+    if like and global_stage:          # every method: the Lai-Ip update needs a good start as much
         starts, note = global_starts(ctx, names, st, fixed)
         pair_notes.append(note)
     tried: list[Estimate] = []

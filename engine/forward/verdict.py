@@ -146,6 +146,12 @@ def admissibility(ctx: FitContext, params: Mapping[str, float], rel: float = 0.0
     return out
 
 
+#: peaks a fit may set aside as unexplained before it is declared inconsistent: more than
+#: this many AND more than this fraction of the list (spurious peaks come one or two at a time)
+MAX_UNEXPLAINED = 2
+MAX_UNEXPLAINED_FRACTION = 0.25
+
+
 def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True) -> tuple[Estimate, list[str]]:
     """(Estimate with the ``fit`` verdict, notes).
 
@@ -168,6 +174,15 @@ def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True) -> tup
         chi2 = sum(r["chi2"] * scale.get(r["kind"], 1.0) ** 2 for r in est.residuals.values())
         fit = checks.goodness(est, unexplained, chi2)
     notes: list[str] = []
+    n_peaks = int(np.size(fwd.assignment.index)) if unexplained else 0
+    if unexplained > max(MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION * n_peaks):
+        # a fit that explains only part of its peak list is not a result, however small its chi^2
+        # (seen: a Lai-Ip update from a 20 % off start set 7 of 10 peaks aside, E1 -18 %, chi^2/nu 0.01)
+        fit["consistent"] = False
+        fit["unexplained_peaks"] = unexplained
+        notes.append(f"INCONSISTENT fit: {unexplained} of {n_peaks} peaks match no predicted mode (more than "
+                     f"{MAX_UNEXPLAINED} and {100 * MAX_UNEXPLAINED_FRACTION:g} %): a start far from the answer, "
+                     "or a peak list that is not this plate's; no constant is reported as identified")
     factor = math.sqrt(chi2_scaled / fit["dof"]) if scale_sigmas and chi2_scaled > fit["dof"] else 1.0
     est = checks.scale_uncertainty(est, factor)
     fit["std_scale"] = factor * math.sqrt(max([v * v for v in scale.values()] or [1.0]))
@@ -187,7 +202,7 @@ def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True) -> tup
     ident["poorly_identified"] = [n for n in est.names if not params[n]["identified"]]
     fit["flags"] = flags
     fit["identified"] = bool(fit["consistent"] and not ident["poorly_identified"])
-    if not fit["consistent"]:
+    if not fit["consistent"] and "unexplained_peaks" not in fit:
         notes.append(f"INCONSISTENT fit: chi^2 = {fit['chi2']:.4g} for {fit['dof']} degrees of freedom "
                      f"(chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g} < 1e-3): a local "
                      "minimum, a wrong mode pairing, or a model/data mismatch (see labid diagnose); "
