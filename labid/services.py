@@ -483,9 +483,11 @@ def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_d
     return out
 
 
-def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>", options=None) -> dict:
-    """The sim-to-real gap diagnosis of a features document (``labid.diagnosis``)."""
-    return diag.run_diagnosis(doc, base_dir, src, options)
+def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>", options=None,
+                  names: Sequence[str] | None = None) -> dict:
+    """The sim-to-real gap diagnosis of a features document (``labid.diagnosis``), from
+    identify's estimate of ``names`` (None: identify's default selection)."""
+    return diag.run_diagnosis(doc, base_dir, src, options, names=names)
 
 
 def run_of_features(features_file: str | Path) -> Path | None:

@@ -111,8 +111,14 @@ class GapView(QWidget):
                 self.main.message("diagnosis: the specimen on the Setup tab is malformed", error=True)
                 return
 
+        # the same parameter selection as the identification shown in the panel (issue 13:
+        # the diagnosis starts from the estimate identify reports)
+        ident = self.main.read_results("identification")
+        names = list(ident["parameters"]) if isinstance(ident, dict) and isinstance(
+            ident.get("parameters"), dict) and ident["parameters"] else None
+
         def work(progress, should_stop):
-            return services.run_diagnosis(doc, ".", "<features>")
+            return services.run_diagnosis(doc, ".", "<features>", names=names)
 
         self.job = self.main.start_job("diagnosis", work, self._done, on_failed=self._failed)
         if self.job is not None:
