@@ -4,10 +4,11 @@ as a test certificate.
 ``write_report(RUN.h5, out=None) -> path`` (``labid report``). A header block (report
 number, revision, date, lab, client, operator, specimen ID, method) from the optional
 ``[report]`` table of the specimen or rig file (docs/formats.md; the specimen's entries win),
-then: 1 specimen, method and test conditions; 2 identified constants in engineering notation
-with the expanded uncertainty U = k x std (k = 2) and the statement of what it covers, the
-fit's consistency, pairing, held constants and flags when the identification holds them;
-3 spectra with picks; 4 scalogram; 5 dispersion fit; 6 gap diagnosis; 7 signatures.
+then: 1 specimen, method, test conditions and the sensor calibration used (overdue channels
+first); 2 identified constants in engineering notation with the expanded uncertainty
+U = k x std (k = 2) and the statement of what it covers, the fit's consistency, pairing, held
+constants, flags and the GUM budget (``uncertainty_budget``) when the identification holds
+them; 3 spectra with picks and the modal loss factors by family; 4 scalogram; 5 dispersion fit; 6 gap diagnosis; 7 signatures.
 Long tables (the picks with their sigma, the pairing, the constants by data set) are in
 appendices. A section whose data the run does not hold is replaced by a one-line note
 saying what is missing.
