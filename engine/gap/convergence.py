@@ -21,7 +21,6 @@ from __future__ import annotations
 import numpy as np
 
 from ..forward.identify import discretisation
-from ..plate import PlateModel
 
 __all__ = ["peak_corrections"]
 
