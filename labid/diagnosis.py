@@ -143,14 +143,15 @@ def start_estimate(doc: Mapping, base_dir: str | Path = ".", src: str = "<featur
     md = problem.features.modal if problem.features is not None else None
     pairing = "mac" if md is not None and md.shapes is not None else "order"
     # identify's own peak -> mode assignment, when it reports one (issue 12: JSON ``pairing``)
-    report = est.to_dict().get("pairing")
+    ident = est.to_dict()
+    report = ident.get("pairing")
     mode_index = None
     # (whatever the shapes: identify pairs by MAC only with >= 6 shape points, else by likelihood)
     if isinstance(report, list) and report and all(
             isinstance(r, Mapping) and "mode_index" in r for r in report):
         mode_index = tuple(None if r["mode_index"] is None else int(r["mode_index"]) for r in report)
         pairing = "identify"
-    return StartEstimate(names=tuple(est.names), params=est.params, findings=tuple(pairing_findings(est.to_dict())),
+    return StartEstimate(names=tuple(est.names), params=est.params, findings=tuple(pairing_findings(ident)),
                          std={n: float(s_) for n, s_ in zip(est.names, est.std)},
                          converged=bool(est.converged), message=est.message, iterations=int(est.iterations),
                          prior_rel_std=prior, prior_mean=st,
@@ -188,7 +189,6 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
                 alt = diagnose(problem, options, start=replace(st, mode_index=None, pairing="order"),
                                progress=step).to_dict()
                 if alt.get("verdict") not in ("unattributed", "none"):
-                    alt.setdefault("notes", [])
                     notes = notes + ["identify's pairing set modes aside and no candidate explained the gap "
                                      "with it; re-paired in frequency order (pairing check), which explains it"]
                     res = alt
