@@ -157,7 +157,8 @@ def start_estimate(doc: Mapping, base_dir: str | Path = ".", src: str = "<featur
                          prior_rel_std=prior, prior_mean=st,
                          pairing=pairing, mode_index=mode_index,
                          source="labid identify (labid.estimation.run, method lm)",
-                         warnings=tuple(est.warnings))
+                         warnings=tuple(est.warnings),
+                         consistent=bool((ident.get("fit") or {}).get("consistent", True)))
 
 
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
@@ -179,23 +180,11 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
     try:
         with bar:
             res = diagnose(problem, options, start=st, progress=step).to_dict()
-            if res.get("verdict") == "unattributed" and st.pairing == "identify" and st.findings:
-                # identify paired the peaks at its own estimate, without any effect: an
-                # effect that moves modes past each other (a sensor mass) can make that
-                # pairing set modes aside wrongly. Re-pair in frequency order (with the
-                # pairing check) and keep it when it explains the gap. Measured: simulated
-                # 5 g at each of 3 accelerometers, 8 modes: identify's pairing
-                # 'unattributed' (gap 64 -> 64), frequency order 'sensor_mass' 4.99 g (gap 82 -> 0.22).
-                alt = diagnose(problem, options, start=replace(st, mode_index=None, pairing="order"),
-                               progress=step).to_dict()
-                if alt.get("verdict") not in ("unattributed", "none"):
-                    notes = notes + ["identify's pairing set modes aside and no candidate explained the gap "
-                                     "with it; re-paired in frequency order (pairing check), which explains it"]
-                    res = alt
-                    st = replace(st, findings=())
         res["notes"] = notes + list(st.warnings)
-        # pairing as a cause (issue 13): what identify's own pairing set aside leads `where`
-        res["where"] = [w for w in st.findings if w not in res["where"]] + list(res["where"])
+        # pairing as a cause (issue 13): what identify's own pairing set aside leads `where`,
+        # when the diagnosis' result rests on that pairing
+        if res.get("identification", {}).get("pairing_used") == "identify":
+            res["where"] = [w for w in st.findings if w not in res["where"]] + list(res["where"])
         return res
     except PhysicsError as e:
         raise UserError(f"unphysical nominal constants: {e}", file=src, key="specimen") from None

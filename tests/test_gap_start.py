@@ -102,3 +102,22 @@ def test_cli_params_and_prior_are_checked_as_identify_checks_them(tmp_path, caps
     assert len(err) == 1 and "--params" in err[0] and "'X'" in err[0]
     assert main(["diagnose", str(f), "--prior", "-1", "--quiet"]) == 2
     assert "--prior" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_mass_found_when_identify_sets_most_peaks_aside_and_a_mode_is_missing():
+    """Issue 13, pairing inside each refit: 4.66 g unmodelled at each of 4 accelerometers,
+    the 3rd mode missing from the list, peaks from a finer mesh than the diagnoser's.
+    identify's likelihood pairing explains nothing cheaper than a bad fit (8 of 9 peaks
+    set aside: inconsistent). Before: the diagnosis crashed (singular chi^2 test); with
+    frequency order alone the mass refit stays in a wrong pairing (unattributed). Re-paired
+    under the effect it finds the injected mass to 2 % and the gap closes to noise."""
+    case = draw_case(3, "sensor_mass", outside=True, wave_sets=())
+    doc = _without_shapes(case.features, drop=(2,))
+    res = run_diagnosis(doc, names=list(NAMES))
+    assert res["verdict"] == "sensor_mass", (res["verdict"], res["diagnosis_notes"])
+    top = res["effects"][0]
+    assert top["magnitude"] == pytest.approx(case.magnitude, rel=0.02)
+    assert res["gap"]["after"] < 1.5 < 50 < res["gap"]["before"]
+    assert res["identification"]["pairing_used"] == "re-paired under sensor_mass"
+    assert any("pair differently" in n for n in res["diagnosis_notes"])

@@ -53,6 +53,12 @@ class Candidate:
         """chi^2 after the joint refit, else the linearised one."""
         return self.refit.chi2 if self.refit is not None else self.chi2_linear
 
+    @property
+    def cost(self) -> float:
+        """chi^2 plus the pairing penalty a re-paired refit added: what ranks the candidates
+        (the chi^2 test uses :attr:`chi2` alone: a penalty is a prior on the pairing, not misfit)."""
+        return self.chi2 + (self.refit.penalty if self.refit is not None else 0.0)
+
 
 def reference(name: str, problem: Features) -> float:
     """Effect value meaning 'absent' (the nominal sensor length for the aperture)."""

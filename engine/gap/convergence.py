@@ -18,17 +18,36 @@ false alarm, and the demo's clean simulated rig (synthesised on a 2x reference m
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..forward.identify import discretisation
 
-__all__ = ["peak_corrections"]
+__all__ = ["peak_corrections", "ModeCorrection"]
 
 
-def peak_corrections(fw, params) -> tuple[np.ndarray, np.ndarray, str]:
-    """(ratio, error_hz, note) per measured peak of ``fw`` (a GapForward at ``params``):
-    the identification's discretisation correction of the paired mode and the remaining
-    error of the corrected prediction (Hz). Unexplained peaks get ratio 1 and error 0."""
+class ModeCorrection(NamedTuple):
+    """Per predicted mode (ascending): f_fine / f_default and the remaining relative error."""
+
+    ratio: np.ndarray
+    error_rel: np.ndarray
+
+    def at(self, index) -> tuple[np.ndarray, np.ndarray]:
+        """(ratio, error_rel) per peak paired with mode ``index`` (-1 or beyond: 1 and 0)."""
+        idx = np.asarray(index, int)
+        ok = (idx >= 0) & (idx < self.ratio.size)
+        ratio, err = np.ones(idx.size), np.zeros(idx.size)
+        ratio[ok], err[ok] = self.ratio[idx[ok]], self.error_rel[idx[ok]]
+        return ratio, err
+
+
+def peak_corrections(fw, params, n_extra: int = 4) -> tuple[np.ndarray, np.ndarray, str, ModeCorrection]:
+    """(ratio, error_hz, note, per_mode) per measured peak of ``fw`` (a GapForward at
+    ``params``): the identification's discretisation correction of the paired mode and the
+    remaining error of the corrected prediction (Hz); unexplained peaks get ratio 1 and
+    error 0. ``per_mode``: the correction of every mode up to ``n_extra`` beyond the
+    highest paired one (for re-pairing under an effect, :mod:`engine.gap.repair`)."""
     p = fw.features
     mf = fw.modal_forward()
     sol = mf.solve(dict(params))
@@ -36,13 +55,12 @@ def peak_corrections(fw, params) -> tuple[np.ndarray, np.ndarray, str]:
     masses = p.rig.masses()
     model = fw.base.with_point_masses(masses) if masses else fw.base
     n_need = int(np.max(idx)) + 1 if idx.size and np.max(idx) >= 0 else 0
-    ratio_m, err_m, note = discretisation(p.laminate, p.length, p.width, masses, model, p.material, n_need + 4)
+    ratio_m, err_m, note = discretisation(p.laminate, p.length, p.width, masses, model, p.material,
+                                          n_need + n_extra)
     ok = (idx >= 0) & (idx < ratio_m.size)
     if getattr(fw, "unexplained", None) is not None:
         ok &= ~np.asarray(fw.unexplained, bool)
-    ratio = np.ones(idx.size)
-    err_rel = np.zeros(idx.size)
-    ratio[ok] = ratio_m[idx[ok]]
-    err_rel[ok] = err_m[idx[ok]]
+    per_mode = ModeCorrection(np.asarray(ratio_m, float), np.asarray(err_m, float))
+    ratio, err_rel = per_mode.at(np.where(ok, idx, -1))
     f = np.asarray(sol.modes.frequencies_hz, float)[np.maximum(idx, 0)] * ratio
-    return ratio, err_rel * f, note
+    return ratio, err_rel * f, note, per_mode

@@ -41,7 +41,10 @@ class RefitError(GapError):
 class Refit:
     """Result of a joint refit: effect magnitude (+- std, effect unit), chi^2 and
     whitened residual after it, fitted constants, held-out gap; ``iterations``
-    is the number of residual evaluations, ``converged`` scipy's status > 0."""
+    is the number of residual evaluations, ``converged`` scipy's status > 0;
+    ``selection``: per peak the predicted mode it was paired with when the refit re-paired
+    the peaks under the effect (:mod:`engine.gap.repair`; None: the start's pairing),
+    ``penalty`` the pairing penalty that re-pairing added (chi^2 units, >= 0)."""
 
     iterations: int
     converged: bool
@@ -51,6 +54,8 @@ class Refit:
     residual: np.ndarray
     constants: dict[str, float]
     held_out_after: float
+    selection: tuple | None = None
+    penalty: float = 0.0
 
 
 def _unpack(x, names):

@@ -36,6 +36,10 @@ class GapFit:
     def __init__(self, problem: Features, fw: ForwardModel, model_rel_sigma: tuple[float, float],
                  names=None, model_sigma: np.ndarray | None = None):
         self.problem, self.fw = problem, fw
+        self.model_rel_sigma = tuple(model_rel_sigma)
+        #: per predicted mode, the discretisation correction (engine.gap.convergence.ModeCorrection;
+        #: None: uncorrected), kept to re-pair under an effect (engine.gap.repair)
+        self.mode_correction = None
         y = fw.observed
         sig = fw.sigma
         nm = fw.n_modal

@@ -48,6 +48,8 @@ class StartEstimate:
     mode_index: tuple | None = None
     #: identify's pairing findings (missing modes, unexplained peaks) for ``where``
     findings: tuple = ()
+    #: identify's own verdict on its fit (``fit.consistent``)
+    consistent: bool = True
 
 
 def identify_pairing(modal) -> str:
