@@ -46,9 +46,8 @@ from .candidates import Candidate, applies, screen
 from .convergence import peak_corrections
 from .forward import GapForward
 from .pairing import pairing_check
-from .refit import Refit, RefitError, refit
-from .repair import (MAX_ROUNDS, current_selection, most_likely, pairing_of, penalty, shape_paired, state,
-                     with_selection)
+from .refit import RefitError, refit
+from .repair import current_selection, repair_note, repaired
 from .residuals import GapError, GapFit
 from .start import StartEstimate, identify_pairing, own_estimate
 from .where import GroupStat, feature_labels, folds, group_table, groups, held_out, mode_families
@@ -297,7 +296,7 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
                       progress: Callable[[str, int, int], None] | None, proposals=()) -> list[Candidate]:
     """Every applicable candidate screened; the top_k detectable ones refitted, the peaks
     re-paired under each (``proposals``: pairings to try too, with their constants; see
-    :func:`_repaired`); ``progress(stage, done, total)`` after each step."""
+    :func:`engine.gap.repair.repaired`); ``progress(stage, done, total)`` after each step."""
     Ja = np.vstack([base.J, np.diag(base.w)])     # augmented Jacobian for projections (prior rows)
     names = [n for n in opts.candidates if applies(n, problem)
              and (n not in PLATE_EFFECTS or hasattr(F.fw, "modal_forward_with"))
@@ -330,7 +329,8 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
                     rf = rf2 if rf2.chi2 < rf.chi2 else rf
                 except RefitError:
                     pass
-            rf = _repaired(c.name, rf, F, base, fl, opts, proposals, c.magnitude_linear)
+            rf = repaired(c.name, rf, F, base.w, base.theta_prior, fl, opts.max_nfev, proposals,
+                          c.magnitude_linear)
             done[c.name] = replace(c, refit=rf)
             if stats.chi2.sf(rf.chi2, dof) > opts.accept_alpha:
                 best_ok = min(best_ok, rf.chi2)
@@ -339,85 +339,6 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
         if progress:
             progress("refit", len(names) + j + 1, total)
     return [done.get(c.name, c) for c in cands]
-
-
-def _repaired(name: str, rf: Refit, F: GapFit, base: _ConstantsFit, fl, opts: GapOptions,
-              proposals=(), a_start: float | None = None) -> Refit:
-    """The refit of effect ``name`` with the peaks re-paired under the effect
-    (:mod:`engine.gap.repair`). Pairings tried: each of ``proposals`` (per peak a mode
-    index, -1 unexplained; refitted from the pairing check's constants and ``a_start``),
-    then, while it changes, the most likely pairing at the best refit so far under the
-    effect; one is kept when its chi^2 plus pairing penalty (evaluated at its own refit)
-    is lower. The returned refit carries the pairing it used (``selection``) and the
-    penalty that change added (>= 0)."""
-    current = current_selection(F)
-    if current is None:
-        return rf
-
-    def pen(Fx: GapFit, r: Refit, idx: np.ndarray) -> float:
-        eff = {name: r.magnitude}
-        f_pred, vis, tau = state(Fx, r.constants, eff, r.residual, idx)
-        return penalty(idx, f_pred, vis, Fx.y[:Fx.fw.n_modal], tau).penalty
-
-    try:
-        pen0 = cur_pen = pen(F, rf, current)
-    except (ValueError, np.linalg.LinAlgError):
-        return rf
-    best, Fc, cur = rf, F, current
-    tried = {tuple(current.tolist())}
-    queue = [(idx if isinstance(idx, str) else np.asarray(idx, int), theta, a_start) for idx, theta in proposals]
-    for _ in range(MAX_ROUNDS + len(queue)):
-        if queue:
-            idx, theta, a0 = queue.pop(0)
-            if isinstance(idx, str):       # "shapes": refit paired by the measured shapes, keep its pairing
-                Fs = shape_paired(F)
-                if Fs is None:
-                    continue
-                try:
-                    rs = refit(name, a_start if a_start is not None else rf.magnitude, Fs, theta, base.w,
-                               base.theta_prior, fl, opts.max_nfev)
-                    idx = pairing_of(Fs, rs.constants, {name: rs.magnitude})
-                except (RefitError, ValueError, np.linalg.LinAlgError):
-                    continue
-                theta, a0 = np.log([rs.constants[n_] for n_ in F.names]), rs.magnitude
-        else:
-            try:
-                f_pred, vis, tau = state(Fc, best.constants, {name: best.magnitude}, best.residual, cur)
-                idx = most_likely(Fc, f_pred, vis, tau).index
-            except (ValueError, np.linalg.LinAlgError):
-                break
-            theta, a0 = np.log([best.constants[n_] for n_ in F.names]), best.magnitude
-        n_un = int(np.sum(idx < 0))
-        if tuple(idx.tolist()) in tried or n_un > max(MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION * idx.size):
-            if queue:
-                continue
-            break
-        tried.add(tuple(idx.tolist()))
-        F2 = with_selection(F, idx)
-        try:
-            rf2 = refit(name, best.magnitude if a0 is None else a0, F2, theta, base.w, base.theta_prior, fl,
-                        opts.max_nfev)
-            pen2 = pen(F2, rf2, idx)
-        except (RefitError, ValueError, np.linalg.LinAlgError):
-            continue
-        if rf2.chi2 + pen2 < best.chi2 + cur_pen:
-            best, Fc, cur, cur_pen = rf2, F2, idx, pen2
-        elif not queue:
-            break
-    if best is rf:
-        return rf
-    return replace(best, selection=tuple(int(j) for j in cur), penalty=max(0.0, cur_pen - pen0))
-
-
-def _repair_note(effect: str, before, after, y) -> str:
-    """One line: how the peaks pair under ``effect`` where that differs from the start's pairing."""
-    diff = []
-    for i, (a, b) in enumerate(zip(before, after)):
-        if a != b:
-            was = "no mode" if a < 0 else f"mode {a + 1}"
-            now = "no mode (set aside)" if b < 0 else f"mode {b + 1}"
-            diff.append(f"peak {i + 1} ({y[i]:.1f} Hz) {was} -> {now}")
-    return f"under {effect} the peaks pair differently from the start: " + "; ".join(diff)
 
 
 def _verdict(refitted: list[Candidate], test: dict, ho0: float, n: int, opts: GapOptions
@@ -479,16 +400,14 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     _check(problem, opts)
     pairing = start.pairing if start is not None else identify_pairing(problem.modal)
     selection = start.mode_index if start is not None else None
-    pre_notes = []
-    if selection is not None:
-        n_un = sum(j is None for j in selection)
-        if n_un > max(MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION * len(selection)):
-            # identify's fit set most peaks aside (an unmodelled effect can make explaining
-            # nothing its cheapest pairing): judging only the peaks it kept would hide the gap
-            pre_notes.append(f"identify's pairing set {n_un} of {len(selection)} peaks aside (its fit is "
-                             "inconsistent); the diagnosis pairs every peak, in frequency order first, and "
-                             "re-pairs under each candidate effect")
-            selection, pairing = None, "order"
+    pre_notes, n_un = [], 0 if selection is None else sum(j is None for j in selection)
+    if selection is not None and n_un > max(MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION * len(selection)):
+        # identify's fit set most peaks aside (an unmodelled effect can make explaining
+        # nothing its cheapest pairing): judging only the peaks it kept would hide the gap
+        pre_notes.append(f"identify's pairing set {n_un} of {len(selection)} peaks aside (its fit is "
+                         "inconsistent); the diagnosis pairs every peak, in frequency order first, and "
+                         "re-pairs under each candidate effect")
+        selection, pairing = None, "order"
     fw = forward or GapForward(problem, pairing=None if selection is not None else pairing, selection=selection)
     names = start.names if start is not None else None
     F0 = GapFit(problem, fw, opts.model_rel_sigma, names=names)
@@ -539,7 +458,7 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     pairing_used = "identify" if selection is not None else pairing
     if chosen is not None and chosen.selection is not None:
         pairing_used = f"re-paired under {verdict}"
-        notes.append(_repair_note(verdict, current_selection(F), chosen.selection, F.y[:fw.n_modal]))
+        notes.append(repair_note(verdict, current_selection(F), chosen.selection, F.y[:fw.n_modal]))
 
     after_r = chosen.residual if chosen is not None else (pair.residual if verdict == "pairing" else r0)
     p_hat, names = base.p_hat, F.names

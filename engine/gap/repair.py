@@ -16,18 +16,22 @@ re-pairs at every evaluation already). Units: Hz.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Mapping, NamedTuple
 
 import numpy as np
 
 from ..forward import F_REF, temperature_params
 from ..forward.modal import extra_modes
+from ..forward.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
 from ..forward.pairing import MISS, MISS_UNKNOWN, SPURIOUS, V_SEEN, assign, visibility
 from .forward import GapForward
+from .refit import Refit, RefitError, refit
 from .residuals import GapFit
 
 __all__ = ["Pairing", "current_selection", "state", "tolerance", "most_likely", "with_selection", "shape_paired", "pairing_of", "penalty",
-           "MAX_ROUNDS", "TAU_RANGE"]
+           "MAX_ROUNDS", "TAU_RANGE",
+           "repaired", "repair_note"]
 
 #: re-pair / refit rounds per candidate at most
 MAX_ROUNDS = 3
@@ -161,3 +165,80 @@ def with_selection(F: GapFit, index: np.ndarray) -> GapFit:
     F2 = GapFit(F.problem, fw2, F.model_rel_sigma, names=F.names, model_sigma=model_sigma)
     F2.mode_correction = F.mode_correction
     return F2
+
+
+def repaired(name: str, rf: Refit, F: GapFit, w: np.ndarray, theta_prior: np.ndarray, fl, max_nfev: int,
+             proposals=(), a_start: float | None = None) -> Refit:
+    """The refit of effect ``name`` with the peaks re-paired under the effect
+    (:mod:`engine.gap.repair`). Pairings tried: each of ``proposals`` (per peak a mode
+    index, -1 unexplained; refitted from the pairing check's constants and ``a_start``),
+    then, while it changes, the most likely pairing at the best refit so far under the
+    effect; one is kept when its chi^2 plus pairing penalty (evaluated at its own refit)
+    is lower. The returned refit carries the pairing it used (``selection``) and the
+    penalty that change added (>= 0)."""
+    current = current_selection(F)
+    if current is None:
+        return rf
+
+    def pen(Fx: GapFit, r: Refit, idx: np.ndarray) -> float:
+        eff = {name: r.magnitude}
+        f_pred, vis, tau = state(Fx, r.constants, eff, r.residual, idx)
+        return penalty(idx, f_pred, vis, Fx.y[:Fx.fw.n_modal], tau).penalty
+
+    try:
+        pen0 = cur_pen = pen(F, rf, current)
+    except (ValueError, np.linalg.LinAlgError):
+        return rf
+    best, Fc, cur = rf, F, current
+    tried = {tuple(current.tolist())}
+    queue = [(idx if isinstance(idx, str) else np.asarray(idx, int), theta, a_start) for idx, theta in proposals]
+    for _ in range(MAX_ROUNDS + len(queue)):
+        if queue:
+            idx, theta, a0 = queue.pop(0)
+            if isinstance(idx, str):       # "shapes": refit paired by the measured shapes, keep its pairing
+                Fs = shape_paired(F)
+                if Fs is None:
+                    continue
+                try:
+                    rs = refit(name, a_start if a_start is not None else rf.magnitude, Fs, theta, w, theta_prior, fl, max_nfev)
+                    idx = pairing_of(Fs, rs.constants, {name: rs.magnitude})
+                except (RefitError, ValueError, np.linalg.LinAlgError):
+                    continue
+                theta, a0 = np.log([rs.constants[n_] for n_ in F.names]), rs.magnitude
+        else:
+            try:
+                f_pred, vis, tau = state(Fc, best.constants, {name: best.magnitude}, best.residual, cur)
+                idx = most_likely(Fc, f_pred, vis, tau).index
+            except (ValueError, np.linalg.LinAlgError):
+                break
+            theta, a0 = np.log([best.constants[n_] for n_ in F.names]), best.magnitude
+        n_un = int(np.sum(idx < 0))
+        if tuple(idx.tolist()) in tried or n_un > max(MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION * idx.size):
+            if queue:
+                continue
+            break
+        tried.add(tuple(idx.tolist()))
+        F2 = with_selection(F, idx)
+        try:
+            rf2 = refit(name, best.magnitude if a0 is None else a0, F2, theta, w, theta_prior, fl, max_nfev)
+            pen2 = pen(F2, rf2, idx)
+        except (RefitError, ValueError, np.linalg.LinAlgError):
+            continue
+        if rf2.chi2 + pen2 < best.chi2 + cur_pen:
+            best, Fc, cur, cur_pen = rf2, F2, idx, pen2
+        elif not queue:
+            break
+    if best is rf:
+        return rf
+    return replace(best, selection=tuple(int(j) for j in cur), penalty=max(0.0, cur_pen - pen0))
+
+
+def repair_note(effect: str, before, after, y) -> str:
+    """One line: how the peaks pair under ``effect`` where that differs from the start's pairing."""
+    diff = []
+    for i, (a, b) in enumerate(zip(before, after)):
+        if a != b:
+            was = "no mode" if a < 0 else f"mode {a + 1}"
+            now = "no mode (set aside)" if b < 0 else f"mode {b + 1}"
+            diff.append(f"peak {i + 1} ({y[i]:.1f} Hz) {was} -> {now}")
+    return f"under {effect} the peaks pair differently from the start: " + "; ".join(diff)
