@@ -309,7 +309,7 @@ class IdentificationView(QWidget):
             try:
                 out["uncertainty_budget"] = budget_of_result(doc, out, specimen=spec, base_dir=base_dir)
             except Exception as e:  # noqa: BLE001 - a failed budget must not lose the identification
-                out["uncertainty_budget_error"] = f"{type(e).__name__ if not isinstance(e, UserError) else ''}{e}"
+                out["uncertainty_budget_error"] = str(e) if isinstance(e, UserError) else f"{type(e).__name__}: {e}"
             return out
 
         self.job = self.main.start_job("identification", work, self._done, on_progress=self._progress,
