@@ -38,6 +38,7 @@ from .errors import UserError
 from .estimation import Problem, problem_from_features
 from .features import read_features
 from .specimen import BUILTIN, Specimen
+from .summary import display_unit
 
 __all__ = ["DEFAULTS", "KEYS", "REL_STEP", "uncertainty_table", "budget_inputs", "identify_budget",
            "budget_of_problem", "budget_text"]
@@ -221,19 +222,12 @@ def identify_budget(problem: Problem, est: Estimate, features_path: str | Path) 
     return budget_of_problem(problem, est, read_features(p), p.parent)
 
 
-def _unit(name: str) -> tuple[str, float]:
-    if name.startswith("nu"):
-        return "", 1.0
-    if name == "density":
-        return " kg/m^3", 1.0
-    return " GPa", 1e-9
-
-
 def budget_text(b: Mapping[str, Any]) -> str:
     """Console table: per constant U (k, coverage), u_c, and each input's contribution."""
     lines = [f"  uncertainty budget (GUM): expanded U = k u_c, coverage {b['coverage']}:"]
     for n, c in b["constants"].items():
-        unit, sc = _unit(n)
+        unit, sc = display_unit(n)
+        unit = f" {unit}" if unit else ""
         rel = f" ({100 * c['U_rel']:.2g} %)" if c.get("U_rel") is not None else ""
         lines.append(f"  {n:>7} = {c['value'] * sc:10.4g} +- {c['U'] * sc:.3g}{unit}{rel}  "
                      f"[u_c {c['u_combined'] * sc:.3g}: type A {c['u_type_a'] * sc:.3g}, type B {c['u_type_b'] * sc:.3g}]")

@@ -193,6 +193,10 @@ def _optional_tables(doc: Mapping[str, Any], src: str) -> None:
             if v < 0:
                 raise UserError(f"value {v:g}: expected a standard uncertainty >= 0 (SI units)",
                                 file=src, key=f"uncertainty.{k}")
+        if "mass" in unc and "density" in unc:
+            raise UserError(f"value {unc['mass']!r} with uncertainty.density {unc['density']!r} also given: "
+                            "expected one of density (kg/m^3) or mass (kg, the plate weighed)",
+                            file=src, key="uncertainty.mass")
     rep = doc.get("report")
     if rep is not None:
         if not isinstance(rep, Mapping):

@@ -8,6 +8,8 @@ Pure functions on plain data (no I/O, no Qt, no engine import), each returning a
   ``unit=""`` gives a bare number (``0.3``); NaN/None gives ``"—"``.
 - ``unit_of(name) -> str``: SI unit of an elastic constant by name: ``E*``/``G*``/``C*`` ->
   ``Pa``, ``nu*`` -> ``""``, ``density``/``rho`` -> ``kg/m³``, ``thickness`` -> ``m``.
+- ``display_unit(name) -> (unit, scale)``: the fixed unit of a console or panel column and
+  the factor from SI: Pa constants in ``("GPa", 1e-9)``, others in their ``unit_of`` with 1.
 - ``constant_with_u(name, value, std, k=2) -> str``: ``"136.7 GPa ± 1.6 GPa (k=2)"``,
   the expanded uncertainty U = k x std in the value's prefix.
 - ``constant_cells(name, value, std, k=2) -> (value, std, U, rel U)``: the cells of one
@@ -39,7 +41,7 @@ import math
 import sys
 from typing import Any, Iterable, Mapping, Sequence
 
-__all__ = ["eng", "unit_of", "constant_cells", "constant_with_u", "constants_table", "pairing_table",
+__all__ = ["eng", "unit_of", "display_unit", "constant_cells", "constant_with_u", "constants_table", "pairing_table",
            "modes_table", "dispersion_table", "next_step", "stream", "table", "PREFIXES"]
 
 #: SI prefixes by power of 1000
@@ -109,6 +111,13 @@ def unit_of(name: str) -> str:
     if n[:1] in ("E", "G", "C"):
         return "Pa"
     return ""
+
+
+def display_unit(name: str) -> tuple[str, float]:
+    """(unit, scale) of a fixed-unit column: moduli (``unit_of`` Pa) in GPa (scale 1e-9),
+    Poisson ratios bare (``""``), density in kg/m³, lengths in m (scale 1)."""
+    u = unit_of(name)
+    return ("GPa", 1e-9) if u == "Pa" else (u, 1.0)
 
 
 def constant_cells(name: str, value: Any, std: Any, k: float = 2.0) -> tuple[str, str, str, str]:

@@ -21,8 +21,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _spec_text() -> str:
+    """The built-in CFRP specimen without its (demo) ``[report]`` table."""
     from importlib import resources
-    return resources.files("labid.data").joinpath(BUILTIN["cfrp"]).read_text()
+    return resources.files("labid.data").joinpath(BUILTIN["cfrp"]).read_text().split("\n[report]")[0]
 
 
 def hammer_record(f0: float = 120.0, fs: float = 2000.0, n: int = 2048, pre: int = 50) -> Record:

@@ -1,9 +1,13 @@
 """Identification tab: parameters and data (modal / waves / combined), estimate ± std,
-convergence history, multi-start scatter and the identifiability view.
+the GUM uncertainty budget, convergence history, multi-start scatter and the
+identifiability view.
 
 The work is ``labid.services.run_identification`` (the workflow of ``labid
 identify``, with a multi-start study) in a background job: it reports each
-model evaluation and stops at the next one when cancelled.
+model evaluation and stops at the next one when cancelled; then the GUM budget
+(``labid.result_budget``, as ``labid identify`` prints it) in the same job. A stored
+result shows the ``uncertainty_budget`` it holds: per constant u_c and U (k = 2) and
+the standard uncertainty each input contributes (its share of u_c² in the tooltip).
 """
 from __future__ import annotations
 
@@ -15,11 +19,16 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, QGridLayout,
                                QGroupBox, QHBoxLayout, QHeaderView, QLabel, QPushButton, QRadioButton,
-                               QLineEdit, QSpinBox, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
+                               QLineEdit, QSpinBox, QTableWidget, QTabWidget, QTableWidgetItem, QVBoxLayout, QWidget)
+
+from pathlib import Path
 
 from .. import services
-from ..errors import UserError
+from ..errors import Cancelled, UserError
+from ..result_budget import budget_of_result
 from ..estimation import default_params
+from ..summary import display_unit
+from .budget_view import BudgetView
 from .common import Banner, empty_note, plot
 
 DATA = ("modal", "waves", "combined")
@@ -43,14 +52,6 @@ def _data_of(out: dict) -> str:
     return "combined" if {"modal", "waves"} <= kinds else (next(iter(kinds)) if len(kinds) == 1 else "?")
 
 
-def _unit(name: str) -> tuple[str, float]:
-    if name.startswith("nu"):
-        return "", 1.0
-    if name == "density":
-        return "kg/m³", 1.0
-    return "GPa", 1e-9
-
-
 def default_names(doc: dict, isotropic: bool) -> tuple[str, ...]:
     """The constants ``labid identify`` fits by default for features ``doc`` (the CLI's
     own rule, ``estimation.default_params``, asked without building the FE model)."""
@@ -70,6 +71,7 @@ class IdentificationView(QWidget):
         self.main = main
         self.result: dict | None = None
         self.features_file_doc: dict | None = None
+        self.features_dir = "."
         self.banner = Banner()
         # controls
         self.data_radios = {d: QRadioButton(d) for d in DATA}
@@ -128,6 +130,9 @@ class IdentificationView(QWidget):
         self.pairing_table.horizontalHeader().setStretchLastSection(True)
         self.pairing_table.verticalHeader().setVisible(False)
         self.pairing_table.setVisible(False)
+        # the GUM budget: one row per source (type A, each type-B input), u_c and U, one column per constant
+        self.budget_box = BudgetView()
+        self.budget_label, self.budget_table = self.budget_box.label, self.budget_box.table
         self.summary = QLabel("")
         self.summary.setWordWrap(True)
         self.summary.setMinimumHeight(3 * self.summary.fontMetrics().height())
@@ -155,7 +160,13 @@ class IdentificationView(QWidget):
         plots = QGridLayout()
         plots.addWidget(self.history_plot, 0, 0)
         plots.addWidget(self.ident_plot, 0, 1)
-        plots.addWidget(self.multi_plot, 1, 0, 1, 2)
+        # the GUM budget and the multi-start study share the lower half: one tab each
+        self.lower_tabs = QTabWidget()
+        self.lower_tabs.addTab(self.budget_box, "GUM uncertainty budget")
+        self.lower_tabs.addTab(self.multi_plot, "multi-start")
+        plots.addWidget(self.lower_tabs, 1, 0, 1, 2)
+        plots.setRowStretch(0, 1)
+        plots.setRowStretch(1, 1)
         body = QHBoxLayout()
         body.addWidget(lw)
         body.addLayout(plots, 1)
@@ -183,6 +194,7 @@ class IdentificationView(QWidget):
             self.main.message(str(e), error=True)
             return False
         self.features_file_doc = doc
+        self.features_dir = str(Path(path).parent)
         self.source_label.setText(f"features: {path}")
         self.reload()
         return True
@@ -249,6 +261,7 @@ class IdentificationView(QWidget):
 
     def show_empty(self) -> None:
         """Plots with a 'no data yet' note instead of bare 0-1 axes."""
+        self.budget_box.show_budget(None, [])
         for w, text in ((self.history_plot, "no data yet: press Identify"),
                         (self.ident_plot, "no data yet"), (self.multi_plot, "no data yet")):
             w.clear()
@@ -284,11 +297,20 @@ class IdentificationView(QWidget):
             return
         n_starts = self.starts_spin.value()
         doc = services.select_data(doc, data)
+        base_dir = self.features_dir if self.features_file_doc is not None else "."
 
         def work(progress, should_stop):
-            return services.run_identification(doc, specimen=spec, names=names, start=start, method=method,
-                                               n_starts=n_starts, data=data, progress=progress,
-                                               should_stop=should_stop)
+            out = services.run_identification(doc, specimen=spec, names=names, start=start, method=method,
+                                              n_starts=n_starts, data=data, progress=progress,
+                                              should_stop=should_stop)
+            if should_stop():
+                raise Cancelled()
+            progress(("budget",))
+            try:
+                out["uncertainty_budget"] = budget_of_result(doc, out, specimen=spec, base_dir=base_dir)
+            except Exception as e:  # noqa: BLE001 - a failed budget must not lose the identification
+                out["uncertainty_budget_error"] = str(e) if isinstance(e, UserError) else f"{type(e).__name__}: {e}"
+            return out
 
         self.job = self.main.start_job("identification", work, self._done, on_progress=self._progress,
                                        on_failed=self._failed)
@@ -307,6 +329,8 @@ class IdentificationView(QWidget):
             self.progress_label.setText(f"running: {item[1]} model evaluations")
         elif item[0] == "start":
             self.progress_label.setText(f"multi-start {item[1]}/{item[2]}")
+        elif item[0] == "budget":
+            self.progress_label.setText("GUM uncertainty budget: sensitivities to the type-B inputs…")
 
     def _finish(self) -> None:
         self.job = None
@@ -338,7 +362,7 @@ class IdentificationView(QWidget):
         idp = (out.get("identifiability") or {}).get("parameters") or {}
         self.table.setRowCount(len(params))
         for i, (n, p) in enumerate(params.items()):
-            unit, sc = _unit(n)
+            unit, sc = display_unit(n)
             v, s = _num(p.get("value")), _num(p.get("std"))
             cells = [n, f"{v * sc:.4g} ± {s * sc:.2g} {unit}", f"{100 * s / abs(v):.2g} %" if v and math.isfinite(v) else "—",
                      f"{_num(nominal[n]) * sc:.4g}" if n in nominal else "—",
@@ -348,6 +372,10 @@ class IdentificationView(QWidget):
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
                 self.table.setItem(i, j, item)
         self.show_pairing(out.get("pairing"))
+        self.budget_box.show_budget(out.get("uncertainty_budget"), list(params), out.get("uncertainty_budget_error"))
+        has_budget = self.budget_table.rowCount() > 0
+        self.lower_tabs.setCurrentWidget(self.budget_box if has_budget or not out.get("multi_start")
+                                         else self.multi_plot)
         res = out.get("residual") or {}
         rs = ", ".join(f"{k} {v:.2e}" for k, v in res.items() if isinstance(v, (int, float)))
         self.summary.setText(f"data {out.get('data') or _data_of(out)} · method {out.get('method', '?')} · "

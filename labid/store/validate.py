@@ -40,14 +40,19 @@ def check_run(f: h5py.File, src: str) -> None:
         if not isinstance(g, h5py.Group):
             raise _bad(src, key, "not a group")
         a = g.attrs
-        try:
-            rate = float(a["rate_hz"])
-            samples = int(a["samples"])
-            pre = int(a["pretrigger"])
-            chans = json.loads(a["channels"])
-            json.loads(a["trigger"])
+        attr = "rate_hz"
+        try:                       # ``attr`` names the attribute that failed in the one line
+            rate = float(a[attr])
+            attr = "samples"
+            samples = int(a[attr])
+            attr = "pretrigger"
+            pre = int(a[attr])
+            attr = "channels"
+            chans = json.loads(a[attr])
+            attr = "trigger"
+            json.loads(a[attr])
         except (KeyError, TypeError, ValueError, OSError) as e:
-            raise _bad(src, key, f"attributes unreadable ({type(e).__name__}: {str(e)[:80]})") from None
+            raise _bad(src, f"{key}.{attr}", f"attribute unreadable ({type(e).__name__}: {str(e)[:80]})") from None
         if not (math.isfinite(rate) and rate > 0):
             raise _bad(src, key + ".rate_hz", f"value {rate!r}; expected a positive sample rate in Hz")
         if not 0 < samples <= 1 << 31 or not 0 <= pre <= 1 << 31:
