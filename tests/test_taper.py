@@ -146,3 +146,30 @@ def test_field_survives_derived_models_and_is_checked(base):
         base.with_thickness_field(np.ones(3))
     with pytest.raises(FEError, match="> 0"):
         base.with_thickness_field(taper(1.5))
+
+
+# -- the thickness_taper effect through the diagnosis' forward model -----------------------
+def test_gap_forward_taper_is_the_plate_field_and_modal_only():
+    from bench.blind import draw_case
+    from engine.forward.effects import EFFECTS, PLATE_EFFECTS
+    from engine.gap import GapForward
+    from labid.diagnosis import problem_from_features
+
+    assert "thickness_taper" in PLATE_EFFECTS and EFFECTS["thickness_taper"].modalities == ("modal",)
+    case = draw_case(3, "clean", wave_sets=(("A0", 0.0, 3),), mesh=(4, 4))
+    pr = problem_from_features(case.features)
+    fw = GapForward(pr, mesh=(4, 4), pairing="order")
+    p, t = case.truth_constants, 0.08
+    y0, y1 = fw.predict(p, {}), fw.predict(p, {"thickness_taper": t})
+    n = fw.n_modal
+    # built independently: the nominal plate, the taper field, the declared accelerometer masses
+    model = PlateModel.build(pr.laminate, pr.length, pr.width, (4, 4))
+    model = model.with_thickness_field(taper(t, pr.length)).with_point_masses(pr.rig.masses())
+    np.testing.assert_allclose(y1[:n], model.solve(n, params=p).frequencies_hz, rtol=1e-8)
+    assert np.abs(y1[:n] / y0[:n] - 1).max() > 1e-3
+    np.testing.assert_array_equal(y1[n:], y0[n:])        # waves see the mean thickness
+    # the bare plate is symmetric about x = L/2 (the rig is not): the sign of the taper is not seen
+    bare = PlateModel.build(pr.laminate, pr.length, pr.width, (4, 4))
+    fp = bare.with_thickness_field(taper(t, pr.length)).solve(n, params=p).frequencies_hz
+    fm = bare.with_thickness_field(taper(-t, pr.length)).solve(n, params=p).frequencies_hz
+    np.testing.assert_allclose(fp, fm, rtol=1e-7)
