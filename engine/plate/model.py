@@ -20,6 +20,7 @@ from scipy.linalg import eigh as sl_eigh
 
 from ..laminate import Laminate, Material
 from .element import NODE_DOF, FEError, reference_matrices, shape_2d
+from .field import COEF_POWER, field_scatter, thickness_weights
 from .mesh import Mesh
 from .sparse import Block, Pattern, point_matrix
 from .stiffness import material_maps, q_derivatives, q_vector
@@ -27,9 +28,6 @@ from .stiffness import material_maps, q_derivatives, q_vector
 __all__ = ["Modes", "PlateModel", "natural_frequencies"]
 
 _SPARE = 4
-#: power of the thickness scale s each stiffness coefficient (COEF_NAMES order) goes with:
-#: A and H ~ s, B ~ s^2, D ~ s^3 (ply interfaces z -> s z); inertias I1, I2, I3 ~ s, s^2, s^3
-_COEF_POWER = np.array([1] * 6 + [2] * 6 + [3] * 6 + [1] * 3)
 
 
 # --------------------------------------------------------------- modes --
@@ -144,47 +142,17 @@ class PlateModel:
 
         ``scale``: one factor per element (n_elements,), element = ey * nx + ex, or a
         callable s(x, y) of arrays (m); each element then takes the means of s, s^2
-        and s^3 over its area (4 x 4 Gauss points: exact for s polynomial of degree
-        <= 2 in x and y). Replaces any field of this model; added stiffness and mass
+        and s^3 over its area (4 x 4 Gauss points: exact for a linear s). Replaces any field of this model; added stiffness and mass
         (springs, point masses, stiffness loss) are kept as they are. ``None``: no field.
+        (Weights and scatter: :mod:`.field`.)
         """
         if scale is None:
             return self._derived(thickness_weights=None)
-        mesh = self.mesh
-        if callable(scale):
-            g, wg = np.polynomial.legendre.leggauss(4)
-            xe, ye = mesh.xe, mesh.ye
-            xq = (xe[:-1, None] + np.diff(xe)[:, None] * (1.0 + g) / 2.0)   # (nx, 4)
-            yq = (ye[:-1, None] + np.diff(ye)[:, None] * (1.0 + g) / 2.0)   # (ny, 4)
-            X = np.broadcast_to(xq[None, :, None, :], (mesh.ny, mesh.nx, 4, 4))
-            Y = np.broadcast_to(yq[:, None, :, None], (mesh.ny, mesh.nx, 4, 4))
-            sq = np.asarray(scale(X, Y), float) * np.ones(X.shape)            # (ny, nx, 4[y], 4[x])
-            wq = np.outer(wg, wg) / 4.0
-            if not np.all(np.isfinite(sq)) or np.any(sq <= 0):
-                raise FEError("thickness field: expected finite s(x, y) > 0 over the plate")
-            tw = np.stack([np.einsum("abij,ij->ab", sq**p, wq).ravel() for p in (1, 2, 3)])
-        else:
-            s = np.asarray(scale, float)
-            if s.shape != (mesh.n_elements,):
-                raise FEError(f"thickness field of shape {s.shape}: expected one factor per element "
-                              f"({mesh.n_elements},)")
-            if not np.all(np.isfinite(s)) or np.any(s <= 0):
-                raise FEError("thickness field: expected finite factors > 0")
-            tw = np.stack([s, s**2, s**3])
-        return self._derived(thickness_weights=tw)
+        return self._derived(thickness_weights=thickness_weights(self.mesh, scale))
 
     def _field_scatter(self) -> sp.csr_matrix:
-        """(nnz, 3 n_types 6400): element data of each power p of s (Ke per type and power,
-        stacked p = 1, 2, 3) to the global data, each element weighted by its mean s^p."""
         if self._tw_scatter is None:
-            pat = self._pat
-            ne, nt = pat.elem_pos.shape[0], pat.type_scales.shape[0]
-            rows = np.tile(pat.elem_pos.ravel(), 3)
-            local = (pat.elem_type[:, None] * 6400 + np.arange(6400)).ravel()
-            cols = np.concatenate([local + p * nt * 6400 for p in range(3)])
-            data = np.repeat(self._tw, 6400, axis=1).ravel()
-            self._tw_scatter = sp.csr_matrix((data, (rows, cols)), shape=(pat.indices.size, 3 * nt * 6400))
-            assert ne == self._tw.shape[1]
+            self._tw_scatter = field_scatter(self._pat, self._tw)
         return self._tw_scatter
 
     def with_point_masses(self, masses: Iterable[Sequence[float]]) -> "PlateModel":
@@ -225,7 +193,7 @@ class PlateModel:
         pat = self._pat
         tw = np.ones((3, self.mesh.n_elements)) if self._tw is None else self._tw
         # (power of the thickness scale, n_types, element matrix); p = 1, 2, 3
-        Ke_type = np.stack([pat.type_scales @ np.tensordot(c * (_COEF_POWER == p), self._Ke, axes=(0, 1)
+        Ke_type = np.stack([pat.type_scales @ np.tensordot(c * (COEF_POWER == p), self._Ke, axes=(0, 1)
                                                            ).reshape(self._Ke.shape[0], -1) for p in (1, 2, 3)])
         xe, ye = self.mesh.xe, self.mesh.ye
         ox = np.clip(np.minimum(xe[1:], x0 + size / 2) - np.maximum(xe[:-1], x0 - size / 2), 0, None) / np.diff(xe)
@@ -278,7 +246,7 @@ class PlateModel:
         """K and M data vectors on the common pattern."""
         pat = self._pat
         if self._tw is not None:   # thickness field: one element matrix per type and power of s
-            Kc = np.stack([((c * (_COEF_POWER == p)) @ self._Kflat).reshape(6, 6400) for p in (1, 2, 3)])
+            Kc = np.stack([((c * (COEF_POWER == p)) @ self._Kflat).reshape(6, 6400) for p in (1, 2, 3)])
             kd = self._field_scatter() @ (pat.type_scales @ Kc).ravel() + self._k_add
             return kd, self._mass(inert)["md"]
         Kc = (c @ self._Kflat).reshape(6, 6400)   # unit element matrix per scale combo
@@ -505,7 +473,7 @@ class PlateModel:
             eK, eM = np.zeros((m, 21)), np.zeros((m, 3))
             for p in (1, 2, 3):
                 k, mm = energies(self._tw[p - 1])
-                eK[:, _COEF_POWER == p] = k[:, _COEF_POWER == p]
+                eK[:, COEF_POWER == p] = k[:, COEF_POWER == p]
                 eM[:, p - 1] = mm[:, p - 1]
         return eK @ dc - modes.omega2[:, None] * (eM @ dI)
 
