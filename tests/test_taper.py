@@ -173,3 +173,13 @@ def test_gap_forward_taper_is_the_plate_field_and_modal_only():
     fp = bare.with_thickness_field(taper(t, pr.length)).solve(n, params=p).frequencies_hz
     fm = bare.with_thickness_field(taper(-t, pr.length)).solve(n, params=p).frequencies_hz
     np.testing.assert_allclose(fp, fm, rtol=1e-7)
+
+
+def test_stiffness_loss_on_a_field_is_that_of_the_local_laminate(base):
+    # the loss removes a fraction of the local (field-scaled) stiffness: with a uniform field
+    # it equals the loss on the scaled laminate
+    s, p = 1.04, T300.params()
+    ref = base.with_laminate(CFRP.scaled_thickness(s)).with_stiffness_loss(0.1, 0.2, 0.06, 0.4, p)
+    fld = base.with_thickness_field(np.full(base.mesh.n_elements, s)).with_stiffness_loss(0.1, 0.2, 0.06, 0.4, p)
+    assert abs(ref.k_add - fld.k_add).max() <= 1e-12 * abs(ref.k_add).max()
+    assert abs(ref.k_add).max() > 0
