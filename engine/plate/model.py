@@ -142,9 +142,9 @@ class PlateModel:
 
         ``scale``: one factor per element (n_elements,), element = ey * nx + ex, or a
         callable s(x, y) of arrays (m); each element then takes the means of s, s^2
-        and s^3 over its area (4 x 4 Gauss points: exact for a linear s). Replaces any field of this model; added stiffness and mass
-        (springs, point masses, stiffness loss) are kept as they are. ``None``: no field.
-        (Weights and scatter: :mod:`.field`.)
+        and s^3 over its area (4 x 4 Gauss points: exact for a linear s). Replaces any
+        field of this model; added stiffness and mass (springs, point masses, stiffness
+        loss) are kept as they are. ``None``: no field. (Weights and scatter: :mod:`.field`.)
         """
         if scale is None:
             return self._derived(thickness_weights=None)
