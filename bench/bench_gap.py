@@ -228,7 +228,9 @@ def main(argv=None) -> int:
             print(f"{kind:18s} {'out ' if outside else 'own '}{r['magnitude']:+.3g} -> {r['verdict']:18s} "
                   f"{'ok ' if correct(r) else 'BAD'} gap {r['gap']['before']:.2f}->{r['gap']['after']:.2f} "
                   f"{r['seconds_diagnose']:.0f}s", flush=True)
-    out.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    keys = {(r["seed"], r["kind"], r["outside"]) for r in rows}
+    keep = [r for k, r in done.items() if k not in keys] if a.only else []   # --only keeps other cases
+    out.write_text("".join(json.dumps(r) + "\n" for r in keep + rows))
     print()
     print("Ranges:", {k: v for k, v in RANGES.items()})
     print(summary(rows))
