@@ -1,6 +1,7 @@
 """Blind validation of the gap diagnoser (engine.gap) on generated cases (bench/blind.py).
 
 Run:  OMP_NUM_THREADS=1 .venv/bin/python bench/bench_gap.py [--quick] [--out bench/gap_cases.jsonl]
+      [--only KIND=N,...]   (N own-generator cases of each KIND only, e.g. thickness_taper=4,clean=3)
 
 Each case is drawn from its seed (hidden effect, magnitude, noise, true
 constants); the diagnoser sees only the features and the nominal specimen/rig.
@@ -186,6 +187,7 @@ def main(argv=None) -> int:
     ap.add_argument("--quick", action="store_true", help="one own-generator case per kind")
     ap.add_argument("--out", default="bench/gap_cases.jsonl")
     ap.add_argument("--summary-only", action="store_true")
+    ap.add_argument("--only", default=None, help="KIND=N,... own-generator cases of these kinds only")
     a = ap.parse_args(argv)
     out = Path(a.out)
     done = {}
@@ -195,6 +197,13 @@ def main(argv=None) -> int:
             done[(r["seed"], r["kind"], r["outside"])] = r
     rows = []
     plan = QUICK if a.quick else PLAN
+    if a.only:
+        plan = []
+        for item in a.only.split(","):
+            kind, _, n = item.partition("=")
+            if kind not in KINDS or not n.isdigit():
+                ap.error(f"--only {item!r}: expected KIND=N with KIND one of {KINDS}")
+            plan.append((kind, int(n), False))
     jobs, seed = [], 1000
     for kind, count, outside in plan:
         for i in range(count):
@@ -219,7 +228,9 @@ def main(argv=None) -> int:
             print(f"{kind:18s} {'out ' if outside else 'own '}{r['magnitude']:+.3g} -> {r['verdict']:18s} "
                   f"{'ok ' if correct(r) else 'BAD'} gap {r['gap']['before']:.2f}->{r['gap']['after']:.2f} "
                   f"{r['seconds_diagnose']:.0f}s", flush=True)
-    out.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    keys = {(r["seed"], r["kind"], r["outside"]) for r in rows}
+    keep = [r for k, r in done.items() if k not in keys] if a.only else []   # --only keeps other cases
+    out.write_text("".join(json.dumps(r) + "\n" for r in keep + rows))
     print()
     print("Ranges:", {k: v for k, v in RANGES.items()})
     print(summary(rows))

@@ -11,8 +11,8 @@ order), so a diagnoser tuned to its own simulator shows it. A benchmark case
 generator (bench/bench_gap.py, tests/test_gap.py), not part of the rig.
 
 Library effects include the real-plate ones (``misalignment``, ``ply_angle_error``,
-``density_gradient``), injected by ``engine.gap.GapForward`` (the diagnoser's
-model of them; with ``outside=True`` on the finer mesh).
+``density_gradient``, ``thickness_taper``), injected by ``engine.gap.GapForward``
+(the diagnoser's model of them; with ``outside=True`` on the finer mesh).
 
 Out-of-library conditions (still outside the enlarged library):
   soft_patch  a local stiffness loss of 30..60 % over a 60 mm x 60 mm square
@@ -59,6 +59,7 @@ RANGES = {
     "misalignment": (2.0, 5.0, False),           # deg, whole layup (grain/fibre angle offset)
     "ply_angle_error": (3.0, 8.0, True),         # deg, the top ply
     "density_gradient": (0.08, 0.15, False),     # relative density change at each end (wood, resin flow)
+    "thickness_taper": (0.03, 0.10, False),      # relative thickness change at each end (hand lay-up, wood)
     "soft_patch": (0.3, 0.6, False),             # fraction of stiffness lost locally
     "lump_mass": (0.003, 0.010, False),          # kg, glue/label/bolt at a random point off the sensors
 }

@@ -29,8 +29,12 @@ ply_angle_error (deg)   the top ply (last listed) laid at its angle + e.
 density_gradient (1)    linear density rho(x) = rho (1 + g (2x/L - 1)) along the
                         length (g >= 0: the sign is not seen by free-free
                         frequencies, which are even in g for a symmetric plate).
-(A linear thickness taper is not in the library yet: it needs per-element
-laminates in engine.plate.)
+thickness_taper (1)     linear thickness h(x) = h (1 + t xi), xi = 2x/L - 1, along the
+                        length, every ply scaled (engine.plate PlateModel.with_thickness_field:
+                        A, H ~ s, B ~ s^2, D ~ s^3, inertias I_k ~ s^k per element);
+                        t >= 0: as for density_gradient the sign is not seen by the
+                        free-free frequencies of a symmetric plate (even in t, second
+                        order). Modal only: the wave path sees the mean thickness h.
 """
 from __future__ import annotations
 
@@ -81,11 +85,13 @@ EFFECTS: dict[str, EffectSpec] = {e.name: e for e in (
     EffectSpec("ply_angle_error", "deg", -10.0, 10.0, 3.0, ("modal",), "top ply laid at a wrong angle"),
     EffectSpec("density_gradient", "1", 0.0, 0.15, 0.05, ("modal",),
                "linear density change along the length (relative change at each end)"),
+    EffectSpec("thickness_taper", "1", 0.0, 0.15, 0.05, ("modal",),
+               "linear thickness change along the length (relative change at each end)"),
 )}
 
 #: effects of the real plate (layup, geometry, material distribution): orthotropic layups only
 #: for the angle effects; evaluated by ``engine.gap.forward.GapForward``
-PLATE_EFFECTS = ("misalignment", "ply_angle_error", "density_gradient")
+PLATE_EFFECTS = ("misalignment", "ply_angle_error", "density_gradient", "thickness_taper")
 ANGLE_EFFECTS = ("misalignment", "ply_angle_error")
 
 

@@ -95,19 +95,42 @@ class ForwardModel:
 
     def _build_modal_forward(self, mass: float, spring: float, thickness: float
                              ) -> ModalForward | SelectedModes:
+        return self._paired(self._plate_model(
+            {"sensor_mass": mass, "support_stiffness": spring, "thickness": thickness}))
+
+    # -- the one plate-model builder (engine.gap.GapForward extends _plate_parts / _paired) --
+    def _plate_parts(self, effects: Mapping[str, float]) -> tuple:
+        """(laminate, thickness field for ``PlateModel.with_thickness_field`` or None,
+        extra point masses (x, y, kg)) of the plate with ``effects``; here: ``thickness``."""
+        lam = self.features.laminate
+        th = effects.get("thickness", 0.0)
+        return (lam.scaled_thickness(1.0 + th) if th else lam), None, []
+
+    def _plate_model(self, effects: Mapping[str, float]) -> PlateModel:
+        """The nominal plate model with every modal effect of ``effects`` built in: the
+        laminate and thickness field of ``_plate_parts``, its point masses, then
+        ``sensor_mass`` kg at every accelerometer and ``support_stiffness`` N/m at every support."""
         p = self.features
-        model = self.base
-        if thickness:
-            model = self.base.with_laminate(p.laminate.scaled_thickness(1.0 + thickness))
+        lam, field, pts = self._plate_parts(effects)
+        model = self.base.with_laminate(lam) if lam is not p.laminate else self.base
+        if field is not None:
+            model = model.with_thickness_field(field)
+        mass, spring = effects.get("sensor_mass", 0.0), effects.get("support_stiffness", 0.0)
         if mass and not p.rig.accelerometers:
             raise EffectError("sensor_mass needs rig.accelerometers")
-        masses = p.rig.masses(mass)
-        if masses:
-            model = model.with_point_masses(masses)
+        pts = list(pts) + p.rig.masses(mass)
+        if pts:
+            model = model.with_point_masses(pts)
         if spring:
             if not p.rig.supports:
                 raise EffectError("support_stiffness needs rig.supports")
             model = model.with_springs([(x, y, spring) for x, y in p.rig.supports])
+        return model
+
+    def _paired(self, model: PlateModel) -> ModalForward | SelectedModes:
+        """The modal forward model of ``model`` paired with the measured modes (by MAC with
+        enough shape points, else once by frequency at the nominal model, or by order)."""
+        p = self.features
         md = p.modal
         by_freq = md.pairing == "frequency" or (
             md.pairing == "auto" and (md.shapes is None or np.shape(md.shapes)[1] < MIN_MAC_POINTS))

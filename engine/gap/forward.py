@@ -10,6 +10,13 @@ and adds the effects of ``engine.forward.effects.PLATE_EFFECTS``:
   density scaled by (1 - g) plus lumped point masses rho h dA g (1 + xi) on a
   regular grid (translational inertia exact to the grid; rotary inertia of the
   gradient neglected, O(h^2/L^2));
+* ``thickness_taper`` t: h(x) = h (1 + t xi), every ply scaled, as a thickness field
+  of the plate model (``PlateModel.with_thickness_field``); modal only (the
+  wave path sees the mean thickness h).
+
+The plate model is built by ``ForwardModel``'s one builder (``_plate_model``):
+this class only adds the real-plate parts (``_plate_parts``), its pairing
+(``_paired``) and a smaller cache.
 
 ``pairing`` fixes how measured modes are paired: ``"order"`` / ``"mac"`` as
 ``labid identify`` does (``engine.forward.ModalForward``), or None for the
@@ -28,7 +35,7 @@ import numpy as np
 
 from ..features import Features, WaveData
 from ..forward import ForwardModel, ModalForward, SelectedModes
-from ..forward.effects import F_REF, PLATE_EFFECTS, EffectError, temperature_params
+from ..forward.effects import F_REF, PLATE_EFFECTS, temperature_params
 from ..laminate import Laminate, Ply
 
 __all__ = ["GapForward", "turned_laminate"]
@@ -85,16 +92,20 @@ class GapForward(ForwardModel):
         return self._plate_fw(base, plate)
 
     def _build_plate_forward(self, base: tuple, plate: tuple):
-        mass, spring, thickness = base
-        mis, ply, g = plate
+        keys = ("sensor_mass", "support_stiffness", "thickness") + PLATE_EFFECTS
+        return self._paired(self._plate_model(dict(zip(keys, base + plate))))
+
+    def _plate_parts(self, effects: Mapping[str, float]) -> tuple:
+        """``ForwardModel._plate_parts`` with the real-plate effects (see module docstring)."""
         p = self.features
+        mis, ply, g, taper = (float(effects.get(k, 0.0)) for k in PLATE_EFFECTS)
+        thickness = effects.get("thickness", 0.0)
         lam = turned_laminate(p.laminate, mis, ply) if (mis or ply) else p.laminate
         if thickness:
             lam = lam.scaled_thickness(1.0 + thickness)
         if g:
             mat = lam.materials[p.material] if p.material else next(iter(lam.materials.values()))
             lam = lam.with_params({"density": mat.density * (1.0 - g)}, mat.name)
-        model = self.base.with_laminate(lam) if lam is not p.laminate else self.base
         pts = []
         if g:
             nx, ny = MASS_GRID
@@ -105,20 +116,21 @@ class GapForward(ForwardModel):
             for x in xs:
                 m = m_area * dA * g * (1.0 + (2.0 * x / p.length - 1.0))
                 pts += [(x, y, m) for y in ys]
-        if mass and not p.rig.accelerometers:
-            raise EffectError("sensor_mass needs rig.accelerometers")
-        pts += p.rig.masses(mass)
-        pts = [q for q in pts if q[2] > 0]
-        if pts:
-            model = model.with_point_masses(pts)
-        if spring:
-            if not p.rig.supports:
-                raise EffectError("support_stiffness needs rig.supports")
-            model = model.with_springs([(x, y, spring) for x, y in p.rig.supports])
-        md = p.modal
+            pts = [q for q in pts if q[2] > 0]
+        field = None
+        if taper:
+            length = p.length
+            field = lambda x, y: 1.0 + taper * (2.0 * x / length - 1.0)   # noqa: E731
+        return lam, field, pts
+
+    def _paired(self, model):
+        """Identify's fixed ``selection`` / ``pairing`` when given, else ``ForwardModel``'s pairing."""
+        p, md = self.features, self.features.modal
         if self._selection is not None:
             inner = ModalForward(model, int(self._selection.max()) + 1, material=p.material)
             return SelectedModes(inner, self._selection)
+        if self.pairing is None:
+            return super()._paired(model)
         return ModalForward(model, self.n_modal, points=md.points if md.shapes is not None else None,
                             shapes=md.shapes, material=p.material)
 

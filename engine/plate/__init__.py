@@ -11,10 +11,12 @@ Modules (each readable alone):
 * :mod:`.stiffness` -- material linearity: 21 laminate coefficients per material,
   their derivatives with respect to the engineering constants;
 * :mod:`.mesh` -- tensor-grid meshes, uniform or graded at the free edges;
+* :mod:`.field` -- thickness field: per-element weights of the powers of the
+  thickness scale (``PlateModel.with_thickness_field``);
 * :mod:`.sparse` -- the fixed sparse pattern, element scatter and eigen blocks
   (the measured reason for the hand-made pattern is in its docstring);
 * :mod:`.model` -- ``PlateModel`` (precomputed parts, solve per parameter set,
-  point masses, springs, stiffness loss, sensitivities) and ``Modes``;
+  point masses, springs, stiffness loss, thickness field, sensitivities) and ``Modes``;
 * :mod:`.labels` -- mode family labels (m, n) from the shapes (``mode_families``).
 
 Public API (re-exported here): ``PlateModel``, ``Modes``, ``Mesh``, ``FEError``,
@@ -25,7 +27,8 @@ Package-internal (public names shared by the modules of this package; not for
 other layers): ``element.shape_2d``, ``element.combo_scales``,
 ``element.reference_matrices``, ``element.SYM3``/``SYM2``, ``stiffness.q_vector``,
 ``stiffness.q_derivatives``, ``stiffness.material_maps``, ``sparse.Pattern``,
-``sparse.Block``, ``sparse.point_matrix``.
+``sparse.Block``, ``sparse.point_matrix``, ``field.COEF_POWER``, ``field.thickness_weights``,
+``field.field_scatter``.
 """
 from .element import NODE_DOF, FEError
 from .labels import mode_families

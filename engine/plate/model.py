@@ -20,6 +20,7 @@ from scipy.linalg import eigh as sl_eigh
 
 from ..laminate import Laminate, Material
 from .element import NODE_DOF, FEError, reference_matrices, shape_2d
+from .field import COEF_POWER, field_scatter, thickness_weights
 from .mesh import Mesh
 from .sparse import Block, Pattern, point_matrix
 from .stiffness import material_maps, q_derivatives, q_vector
@@ -53,7 +54,7 @@ class PlateModel:
     """Free-free laminated Mindlin plate: precomputed parts, solve per parameter set."""
 
     def __init__(self, laminate: Laminate, mesh: Mesh, shear_factor: float = 5.0 / 6.0,
-                 *, _parts=None, k_add=None, m_add=None, _cache=None):
+                 *, _parts=None, k_add=None, m_add=None, _cache=None, thickness_weights=None):
         self.laminate, self.mesh, self.shear_factor = laminate, mesh, shear_factor
         if _parts is None:
             Kref, Mref = reference_matrices()
@@ -71,6 +72,9 @@ class PlateModel:
         # no added stiffness on the membrane DOFs (the membrane eigenvalue bound needs it)
         fr = np.repeat(np.arange(len(self._pat.indptr) - 1), np.diff(self._pat.indptr)) % NODE_DOF
         self._membrane_k_free = not np.any(self._k_add[(fr < 2) & (self._pat.indices % NODE_DOF < 2)])
+        # thickness field: (3, n_elements) element means of s, s^2, s^3 (None: uniform s = 1)
+        self._tw = None if thickness_weights is None else np.asarray(thickness_weights, float)
+        self._tw_scatter = None   # weighted element scatter of the field (see _field_scatter)
 
     # -- construction ---------------------------------------------------
     @classmethod
@@ -115,13 +119,41 @@ class PlateModel:
         Kref, Mref = self._Ke, self._Me
         return PlateModel(laminate, self.mesh, self.shear_factor,
                           _parts=(Kref, Mref, self._pat, material_maps(laminate, self.shear_factor)),
-                          k_add=self._k_add, m_add=self._m_add, _cache=self._cache)
+                          k_add=self._k_add, m_add=self._m_add, _cache=self._cache,
+                          thickness_weights=self._tw)
 
-    def _derived(self, k_add=None, m_add=None) -> "PlateModel":
+    def _derived(self, k_add=None, m_add=None, thickness_weights=False) -> "PlateModel":
         return PlateModel(self.laminate, self.mesh, self.shear_factor,
                           _parts=(self._Ke, self._Me, self._pat, self._maps),
                           k_add=self._k_add if k_add is None else k_add,
-                          m_add=self._m_add if m_add is None else m_add, _cache=self._cache)
+                          m_add=self._m_add if m_add is None else m_add, _cache=self._cache,
+                          thickness_weights=self._tw if thickness_weights is False else thickness_weights)
+
+    # -- thickness field ----------------------------------------------------
+    @property
+    def thickness_scale(self) -> np.ndarray | None:
+        """Per-element mean thickness factor (n_elements,), element = ey * nx + ex; None: uniform 1."""
+        return None if self._tw is None else self._tw[0].copy()
+
+    def with_thickness_field(self, scale) -> "PlateModel":
+        """The same plate with a thickness field: at (x, y) every ply of the laminate is
+        scaled by s(x, y) > 0 (the mid-plane stays at z = 0), so A and H scale by s, B by
+        s^2, D by s^3 and the inertias I1, I2, I3 by s, s^2, s^3.
+
+        ``scale``: one factor per element (n_elements,), element = ey * nx + ex, or a
+        callable s(x, y) of arrays (m); each element then takes the means of s, s^2
+        and s^3 over its area (4 x 4 Gauss points: exact for a linear s). Replaces any
+        field of this model; added stiffness and mass (springs, point masses, stiffness
+        loss) are kept as they are. ``None``: no field. (Weights and scatter: :mod:`.field`.)
+        """
+        if scale is None:
+            return self._derived(thickness_weights=None)
+        return self._derived(thickness_weights=thickness_weights(self.mesh, scale))
+
+    def _field_scatter(self) -> sp.csr_matrix:
+        if self._tw_scatter is None:
+            self._tw_scatter = field_scatter(self._pat, self._tw)
+        return self._tw_scatter
 
     def with_point_masses(self, masses: Iterable[Sequence[float]]) -> "PlateModel":
         """Add point masses (x, y, m) or (x, y, m, Ix, Iy): m in kg on u0, v0, w0;
@@ -159,8 +191,10 @@ class PlateModel:
             raise FEError(f"stiffness loss {loss!r} over {size!r} m: expected 0 <= loss <= 1 and size > 0")
         c, _ = self.coefficients(params, material)
         pat = self._pat
-        Kc = np.tensordot(c, self._Ke, axes=(0, 1)).reshape(self._Ke.shape[0], -1)
-        Ke_type = pat.type_scales @ Kc                       # (n_types, element matrix)
+        tw = np.ones((3, self.mesh.n_elements)) if self._tw is None else self._tw
+        # (power of the thickness scale, n_types, element matrix); p = 1, 2, 3
+        Ke_type = np.stack([pat.type_scales @ np.tensordot(c * (COEF_POWER == p), self._Ke, axes=(0, 1)
+                                                           ).reshape(self._Ke.shape[0], -1) for p in (1, 2, 3)])
         xe, ye = self.mesh.xe, self.mesh.ye
         ox = np.clip(np.minimum(xe[1:], x0 + size / 2) - np.maximum(xe[:-1], x0 - size / 2), 0, None) / np.diff(xe)
         oy = np.clip(np.minimum(ye[1:], y0 + size / 2) - np.maximum(ye[:-1], y0 - size / 2), 0, None) / np.diff(ye)
@@ -168,7 +202,8 @@ class PlateModel:
         for ey in np.flatnonzero(oy):
             for ex in np.flatnonzero(ox):
                 e = ey * self.mesh.nx + ex
-                np.add.at(add, pat.elem_pos[e], -loss * ox[ex] * oy[ey] * Ke_type[pat.elem_type[e]])
+                Ke = tw[:, e] @ Ke_type[:, pat.elem_type[e]]
+                np.add.at(add, pat.elem_pos[e], -loss * ox[ex] * oy[ey] * Ke)
         return self._derived(k_add=add)
 
     # -- parameters -----------------------------------------------------
@@ -191,7 +226,8 @@ class PlateModel:
 
     def coefficients(self, params: Mapping[str, float] | None = None,
                      material: str | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(21 stiffness coefficients per COEF_NAMES, (I1, I2, I3)) for a parameter set."""
+        """(21 stiffness coefficients per COEF_NAMES, (I1, I2, I3)) for a parameter set
+        (of the laminate; a thickness field scales them per element, see with_thickness_field)."""
         c = np.zeros(21)
         inert = np.zeros(3)
         for name, mat in self._materials(params, material).items():
@@ -209,6 +245,10 @@ class PlateModel:
     def _data(self, c: np.ndarray, inert: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """K and M data vectors on the common pattern."""
         pat = self._pat
+        if self._tw is not None:   # thickness field: one element matrix per type and power of s
+            Kc = np.stack([((c * (COEF_POWER == p)) @ self._Kflat).reshape(6, 6400) for p in (1, 2, 3)])
+            kd = self._field_scatter() @ (pat.type_scales @ Kc).ravel() + self._k_add
+            return kd, self._mass(inert)["md"]
         Kc = (c @ self._Kflat).reshape(6, 6400)   # unit element matrix per scale combo
         kd = pat.scatter @ (pat.type_scales @ Kc).ravel() + self._k_add
         return kd, self._mass(inert)["md"]
@@ -223,8 +263,14 @@ class PlateModel:
         memo = self._mass_memo
         if memo is None or memo["key"] != key:
             pat = self._pat
-            Mc = np.tensordot(np.asarray(inert, dtype=float), self._Me, 1).ravel()
-            md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
+            inert = np.asarray(inert, dtype=float)
+            if self._tw is not None:   # I1, I2, I3 go with s, s^2, s^3
+                Mc = (inert[:, None] * self._Me.reshape(3, -1))                       # (3, 6400)
+                md = self._field_scatter() @ (pat.type_scales[None, :, 0, None] * Mc[:, None, :]).ravel() \
+                    + self._m_add
+            else:
+                Mc = np.tensordot(inert, self._Me, 1).ravel()
+                md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
             md.flags.writeable = False
             memo = self._mass_memo = {"key": key, "md": md, "M": pat.mass_matrix(md)}
         return memo
@@ -405,17 +451,30 @@ class PlateModel:
         phi = modes.shapes[self.mesh.element_dofs].transpose(2, 0, 1)   # (m, ne, 80)
         m = phi.shape[0]
         nt = pat.type_scales.shape[0]
-        # S[t, mode] = sum over elements of type t of phi_e phi_e' (80 x 80), by matmul
-        S = np.empty((nt, m, 80, 80))
-        for t in range(nt):
-            ph = phi[:, pat.elem_type == t] if nt > 1 else phi
-            np.matmul(ph.transpose(0, 2, 1), ph, out=S[t])
-        Sc = (pat.type_scales.T @ S.reshape(nt, -1)).reshape(6, m, 6400)  # per scale combo
         if "Ke_rows" not in self._cache:   # (6, 6400, 21) reference K per combo, 21 columns
             self._cache["Ke_rows"] = np.ascontiguousarray(self._Ke.reshape(6, 21, 6400).transpose(0, 2, 1))
         Kr = self._cache["Ke_rows"]
-        eK = sum(Sc[p] @ Kr[p] for p in range(6))                       # (m, 21)
-        eM = Sc[0] @ self._Me.reshape(3, 6400).T                        # (m, 3)
+        Me = self._Me.reshape(3, 6400).T                                # (6400, 3)
+
+        def energies(w):
+            # S[t, mode] = sum over elements of type t of w_e phi_e phi_e' (80 x 80), by matmul
+            S = np.empty((nt, m, 80, 80))
+            pw = phi if w is None else phi * w[None, :, None]
+            for t in range(nt):
+                sel = pat.elem_type == t
+                ph, phw = (phi[:, sel], pw[:, sel]) if nt > 1 else (phi, pw)
+                np.matmul(phw.transpose(0, 2, 1), ph, out=S[t])
+            Sc = (pat.type_scales.T @ S.reshape(nt, -1)).reshape(6, m, 6400)  # per scale combo
+            return sum(Sc[p] @ Kr[p] for p in range(6)), Sc[0] @ Me          # (m, 21), (m, 3)
+
+        if self._tw is None:
+            eK, eM = energies(None)
+        else:   # thickness field: coefficient k and inertia j go with s^power
+            eK, eM = np.zeros((m, 21)), np.zeros((m, 3))
+            for p in (1, 2, 3):
+                k, mm = energies(self._tw[p - 1])
+                eK[:, COEF_POWER == p] = k[:, COEF_POWER == p]
+                eM[:, p - 1] = mm[:, p - 1]
         return eK @ dc - modes.omega2[:, None] * (eM @ dI)
 
 
