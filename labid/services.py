@@ -47,6 +47,7 @@ from . import atomic
 from . import diagnosis as diag
 from . import identification as ident
 from .acquisition import AcquisitionSession, LiveSession
+from .budget import budget_of_problem
 from .analysis import Analysis, AnalysisSettings, analyze_store, modal_features, modal_table, store_analysis
 from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
                       scalogram)
@@ -449,8 +450,12 @@ def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_d
                        src: str = "<features>", names: Sequence[str] | None = None,
                        start: Mapping[str, float] | None = None, method: str = "lm", n_starts: int = 0,
                        data: str | None = None, progress: Progress | None = None,
-                       should_stop: ShouldStop | None = None) -> dict:
+                       should_stop: ShouldStop | None = None, budget: bool = False) -> dict:
     """Identify the constants from a features document (``labid.identification.run``).
+
+    ``budget``: add the GUM ``uncertainty_budget`` as ``labid identify`` does
+    (``labid.budget.budget_of_problem``; reported as ``("budget",)``); a budget that
+    fails leaves ``uncertainty_budget_error`` and never loses the identification.
 
     With ``should_stop``/``progress`` (the panel) every model evaluation reports
     ``("eval", n)`` and a stop request raises ``Cancelled``; ``n_starts`` random
@@ -463,6 +468,15 @@ def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_d
                                      progress or (lambda obj: None))
     est = ident.run(problem, names, start or None, method=method)
     out = est.to_dict()
+    if budget:
+        if progress:
+            progress(("budget",))
+        try:
+            out["uncertainty_budget"] = budget_of_problem(problem, est, doc, base_dir)
+        except Cancelled:
+            raise
+        except Exception as e:  # noqa: BLE001 - a failed budget must not lose the identification
+            out["uncertainty_budget_error"] = str(e) if isinstance(e, UserError) else f"{type(e).__name__}: {e}"
     if data is None:
         return out
     out["data"] = data

@@ -5,7 +5,7 @@ identifiability view.
 The work is ``labid.services.run_identification`` (the workflow of ``labid
 identify``, with a multi-start study) in a background job: it reports each
 model evaluation and stops at the next one when cancelled; then the GUM budget
-(``labid.result_budget``, as ``labid identify`` prints it) in the same job. A stored
+(``services.run_identification(budget=True)``, as ``labid identify`` prints it) in the same job. A stored
 result shows the ``uncertainty_budget`` it holds: per constant u_c and U (k = 2) and
 the standard uncertainty each input contributes (its share of u_c² in the tooltip).
 """
@@ -25,7 +25,6 @@ from pathlib import Path
 
 from .. import services
 from ..errors import Cancelled, UserError
-from ..result_budget import budget_of_result
 from ..estimation import default_params
 from ..summary import display_unit
 from .budget_view import BudgetView
@@ -300,16 +299,11 @@ class IdentificationView(QWidget):
         base_dir = self.features_dir if self.features_file_doc is not None else "."
 
         def work(progress, should_stop):
-            out = services.run_identification(doc, specimen=spec, names=names, start=start, method=method,
-                                              n_starts=n_starts, data=data, progress=progress,
-                                              should_stop=should_stop)
+            out = services.run_identification(doc, specimen=spec, base_dir=base_dir, names=names, start=start,
+                                              method=method, n_starts=n_starts, data=data, progress=progress,
+                                              should_stop=should_stop, budget=True)
             if should_stop():
                 raise Cancelled()
-            progress(("budget",))
-            try:
-                out["uncertainty_budget"] = budget_of_result(doc, out, specimen=spec, base_dir=base_dir)
-            except Exception as e:  # noqa: BLE001 - a failed budget must not lose the identification
-                out["uncertainty_budget_error"] = str(e) if isinstance(e, UserError) else f"{type(e).__name__}: {e}"
             return out
 
         self.job = self.main.start_job("identification", work, self._done, on_progress=self._progress,
