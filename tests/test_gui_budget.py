@@ -16,7 +16,6 @@ pytest.importorskip("pytestqt")
 
 from PySide6.QtCore import Qt  # noqa: E402
 
-from labid.gui.main_window import MainWindow  # noqa: E402
 from labid.specimen import specimen_from_dict  # noqa: E402
 from labid.synthetic import synthetic_features  # noqa: E402
 
@@ -31,20 +30,8 @@ PLATE = {"name": "Al 500x350x0.5", "plate": {"length": 0.5, "width": 0.35},
 
 
 @pytest.fixture
-def win(qtbot):
-    w = MainWindow()
-    w.resize(1366, 768)
-    w.show()
-    yield w
-    import gc
-
-    from PySide6.QtCore import QEvent
-    from PySide6.QtWidgets import QApplication
-    w.close()
-    w.deleteLater()
-    QApplication.sendPostedEvents(None, QEvent.DeferredDelete)
-    QApplication.processEvents()
-    gc.collect()
+def win(main_window):
+    return main_window
 
 
 def cells(view) -> dict[str, dict[str, str]]:

@@ -12,7 +12,6 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
 import labid.gui.main_window as mw  # noqa: E402
-from labid.gui.main_window import MainWindow  # noqa: E402
 
 from fuzzcases import damaged_copy  # noqa: E402
 from test_reliability import small_run  # noqa: E402
@@ -34,19 +33,8 @@ def damaged(base, dst, how):
 
 
 @pytest.fixture
-def win(qtbot):
-    w = MainWindow()
-    w.resize(1366, 768)
-    w.show()
-    yield w
-    import gc
-
-    from PySide6.QtCore import QEvent
-    w.close()
-    w.deleteLater()
-    QApplication.sendPostedEvents(None, QEvent.DeferredDelete)
-    QApplication.processEvents()
-    gc.collect()
+def win(main_window):
+    return main_window
 
 
 def open_from_menu(win, monkeypatch, path) -> None:

@@ -139,9 +139,9 @@ def test_lock_is_reentrant_within_one_process_and_released(tmp_path):
     assert not lock_path(p).exists()
 
 
-def test_a_reader_never_writes_copies_or_repairs(tmp_path):
-    """A file left flagged by a writer killed outside SWMR mode is read as it is."""
-    p = small_run(tmp_path / "run.h5", result={"f": [1.0, 2.0]})
+def flagged_run(path):
+    """A run left flagged by a writer killed outside SWMR mode (3 shots, a result)."""
+    p = small_run(path, result={"f": [1.0, 2.0]})
     proc = child("""
         from labid.store import RunStore
         st = RunStore(sys.argv[1])
@@ -153,6 +153,12 @@ def test_a_reader_never_writes_copies_or_repairs(tmp_path):
     proc.wait()
     with pytest.raises(OSError, match="consistency flags"):
         h5py.File(p, "r")
+    return p
+
+
+def test_a_reader_never_writes_copies_or_repairs(tmp_path):
+    """A file left flagged by a writer killed outside SWMR mode is read as it is."""
+    p = flagged_run(tmp_path / "run.h5")
     before = (p.stat().st_ino, p.stat().st_mtime_ns, p.read_bytes())
     names = siblings(p)
     with RunStore(p, "r") as st:

@@ -12,7 +12,7 @@ import pytest
 
 from labid.store import RunStore
 
-from test_reliability import child, siblings, small_run
+from test_reliability import child, flagged_run, siblings, small_run
 
 #: a run writer (``"a"`` open) whose repair is stopped at a chosen moment
 REPAIRER = """
@@ -62,23 +62,6 @@ with RunStore(sys.argv[1]):                      # the "a" open repairs the flag
     pass
 print("finished", flush=True)
 """
-
-
-def flagged_run(path):
-    """A run left flagged by a writer killed outside SWMR mode (3 shots, a result)."""
-    p = small_run(path, result={"f": [1.0, 2.0]})
-    proc = child("""
-        from labid.store import RunStore
-        st = RunStore(sys.argv[1])
-        st.write_config_text("note", "x")          # normal mode: the flags are set
-        print("ready", flush=True); sys.stdin.readline()
-    """, str(p))
-    assert proc.stdout.readline().strip() == "ready"
-    proc.kill()
-    proc.wait()
-    with pytest.raises(OSError, match="consistency flags"):
-        h5py.File(p, "r")
-    return p
 
 
 @pytest.mark.parametrize("moment", ["copying", "renaming"])
