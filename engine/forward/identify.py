@@ -216,12 +216,13 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
         mat.with_params(**p).check()
 
     try:
-        sur = RitzSurrogate(fwd.model, full, best_names, fwd.n_solve, material=ctx.material)
+        sur = RitzSurrogate(fwd.model, full, best_names, fwd.n_solve, material=ctx.material,
+                            solve=fwd.modes_at)   # memoised: the visibility below reuses the start's modes
     except (PhysicsError, ValueError, np.linalg.LinAlgError) as e:
         return [dict(start)], f"global stage: skipped ({e})"
     vis = None
     if fwd.response_points is not None and len(fwd.response_points):
-        modes = fwd.model.solve(fwd.n_solve, params=full, material=ctx.material)
+        modes = fwd.modes_at(full)
         vis = visibility(fwd.model, modes, fwd.response_points, fwd.drive_points)
     cands = global_search(sur, best_names, fwd.observed, fwd.sigma_obs, visible=vis,
                           correction=fwd.correction, check=check)
