@@ -184,12 +184,12 @@ class ModalForward:
         """The model's ``n_solve`` lowest elastic modes at ``params`` (memoised: the last
         MODES_KEPT parameter sets; the solve is deterministic)."""
         key = _key(params)
-        modes = self._modes.get(key)
+        modes = self._modes.pop(key, None)     # re-inserted last: least recently used goes first
         if modes is None:
             modes = self.model.solve(self.n_solve, params=dict(params), material=self.material)
             if len(self._modes) >= MODES_KEPT:
                 self._modes.pop(next(iter(self._modes)))
-            self._modes[key] = modes
+        self._modes[key] = modes
         return modes
 
     @property
