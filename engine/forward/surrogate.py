@@ -42,11 +42,13 @@ class RitzSurrogate:
 
     ``start``: every elastic constant of the material (contract names, no density);
     ``names``: the constants the basis spans (each raised by SPREAD);
-    ``n_modes``: modes solved per basis point and returned per prediction.
+    ``n_modes``: modes solved per basis point and returned per prediction;
+    ``solve``: optional ``params -> Modes`` of ``n_modes`` modes (e.g. a memoised
+    ``ModalForward.modes_at``) used instead of ``model.solve``.
     """
 
     def __init__(self, model, start: Mapping[str, float], names: Sequence[str], n_modes: int,
-                 material: str | None = None):
+                 material: str | None = None, solve=None):
         self.model, self.material, self.n = model, material, int(n_modes)
         self.start = dict(start)
         pts = [dict(start)]
@@ -57,7 +59,8 @@ class RitzSurrogate:
         vecs = []
         for p in pts:
             try:
-                vecs.append(model.solve(self.n, params=p, material=material).shapes)
+                vecs.append(model.solve(self.n, params=p, material=material).shapes if solve is None
+                            else solve(p).shapes)
             except (PhysicsError, ValueError):
                 continue
         V = np.hstack(vecs)
