@@ -143,7 +143,10 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     report(table)
 
     step("5/6 diagnosing the sim-to-real gap; writing figures and the report")
-    gap = services.run_diagnosis(features, base_dir=out, src=str(features_path))
+    # from the combined identification just reported (same features, start and options): the
+    # diagnosis judges that fit, and does not repeat it (~10 s CPU, bench/RESULTS.md)
+    gap = services.run_diagnosis(features, base_dir=out, src=str(features_path), start=DATASHEET_START,
+                                 estimate=results.get("combined"))
     plot_gap(gap, out / "gap.png")
     services.store_result(run, "diagnosis", gap)
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")

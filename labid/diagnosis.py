@@ -129,47 +129,56 @@ def pairing_findings(ident: Mapping) -> list[str]:
 
 def start_estimate(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
                    names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
-                   prior: float | None = None) -> StartEstimate:
+                   prior: float | None = None, result: Mapping | None = None) -> StartEstimate:
     """The estimate ``labid identify FEATURES --params NAMES --start START --prior PRIOR``
     reports (``labid.estimation.run``, method lm: same parameter selection, start,
     prior, pairing, Birge and consistency checks), as the diagnosis' start.
 
-    This is the single seam between the diagnosis and the identification: re-point
-    it when the identification's entry point changes.
+    ``result``: that estimate's JSON dict when the caller has it already (the demo
+    identifies the same features with the same options just before): used as it is,
+    not recomputed. This is the single seam between the diagnosis and the
+    identification: re-point it when the identification's entry point changes.
     """
     problem = estimation.problem_from_features(doc, base_dir=base_dir, src=src)
-    est = estimation.run(problem, names, start, method="lm", prior=prior)
-    st = estimation.start_values(problem, est.names, start)
     md = problem.features.modal if problem.features is not None else None
+    if result is None:
+        result = estimation.run(problem, names, start, method="lm", prior=prior).to_dict()
+    names = tuple(result["parameters"])
+    st = estimation.start_values(problem, names, start)
     pairing = "mac" if md is not None and md.shapes is not None else "order"
     # identify's own peak -> mode assignment, when it reports one (issue 12: JSON ``pairing``)
-    ident = est.to_dict()
-    report = ident.get("pairing")
+    report = result.get("pairing")
     mode_index = None
     # (whatever the shapes: identify pairs by MAC only with >= 6 shape points, else by likelihood)
     if isinstance(report, list) and report and all(
             isinstance(r, Mapping) and "mode_index" in r for r in report):
         mode_index = tuple(None if r["mode_index"] is None else int(r["mode_index"]) for r in report)
         pairing = "identify"
-    return StartEstimate(names=tuple(est.names), params=est.params, findings=tuple(pairing_findings(ident)),
-                         std={n: float(s_) for n, s_ in zip(est.names, est.std)},
-                         converged=bool(est.converged), message=est.message, iterations=int(est.iterations),
+    par = result["parameters"]
+    return StartEstimate(names=names, params={n: float(par[n]["value"]) for n in names},
+                         findings=tuple(pairing_findings(result)),
+                         std={n: float(par[n]["std"]) for n in names},
+                         converged=bool(result["converged"]), message=str(result.get("message", "")),
+                         iterations=int(result.get("iterations") or 0),
                          prior_rel_std=prior, prior_mean=st,
                          pairing=pairing, mode_index=mode_index,
                          source="labid identify (labid.estimation.run, method lm)",
-                         warnings=tuple(est.warnings),
-                         consistent=bool((ident.get("fit") or {}).get("consistent", True)))
+                         warnings=tuple(result.get("warnings") or ()),
+                         consistent=bool((result.get("fit") or {}).get("consistent", True)))
 
 
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
                   options: GapOptions | None = None, names: Sequence[str] | None = None,
-                  start: Mapping[str, float] | None = None, prior: float | None = None) -> dict:
+                  start: Mapping[str, float] | None = None, prior: float | None = None,
+                  estimate: Mapping | None = None) -> dict:
     """Diagnosis document (``GapResult.to_dict()``, CONTRACT section 3 keys first, plus
-    ``notes``) of parsed features, from identify's estimate (:func:`start_estimate`).
+    ``notes``) of parsed features, from identify's estimate (:func:`start_estimate`;
+    ``estimate``: identify's result dict for these features and options, if at hand).
     Progress (the estimate, candidates screened and refitted) on stderr via ``labid.progress``."""
     problem, notes = problem_and_notes(doc, base_dir, src)
-    progress.note("diagnosis: identifying the constants (as labid identify)")
-    st = start_estimate(doc, base_dir, src, names, start, prior)
+    if estimate is None:
+        progress.note("diagnosis: identifying the constants (as labid identify)")
+    st = start_estimate(doc, base_dir, src, names, start, prior, result=estimate)
     bar = progress.bar(None, "candidate effects", unit="step")
 
     def step(stage: str, done: int, total: int) -> None:

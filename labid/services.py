@@ -498,10 +498,12 @@ def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_d
 
 
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>", options=None,
-                  names: Sequence[str] | None = None) -> dict:
+                  names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
+                  estimate: Mapping | None = None) -> dict:
     """The sim-to-real gap diagnosis of a features document (``labid.diagnosis``), from
-    identify's estimate of ``names`` (None: identify's default selection)."""
-    return diag.run_diagnosis(doc, base_dir, src, options, names=names)
+    identify's estimate of ``names`` (None: identify's default selection) from ``start``;
+    ``estimate``: that identification's result dict when at hand (not recomputed)."""
+    return diag.run_diagnosis(doc, base_dir, src, options, names=names, start=start, estimate=estimate)
 
 
 def run_of_features(features_file: str | Path) -> Path | None:
