@@ -83,6 +83,12 @@ def levenberg_marquardt(prob: Problem, theta: np.ndarray, tp: np.ndarray, w: np.
                 gn, decrement = _gn_step(A, g)
                 negligible = decrement < 1e-3 + 2e-5 * cost
                 stalled, stall_refreshed = 0, True
+            elif negligible:
+                # the full GN step would gain < 1e-3 chi^2 (~0.03 sd) more: no line search.
+                # Measured: the demo's combined fit spent 98 of its 308 residual evaluations
+                # in these searches (14 halvings each, 4 failing at every scale, the best
+                # gaining 1e-5 of a cost of 2.3)
+                return theta, True, it - 1, "misfit at the noise level of the forward models"
             else:
                 # last check: a line search along the GN direction; no decrease at any
                 # scale means the remaining "decrement" is below the model's noise
