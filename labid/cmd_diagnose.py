@@ -9,13 +9,17 @@ magnitude, unit, gap_after, score, ...}``), ``verdict`` (an effect name,
 (before/after) and per-feature residuals. ``--plot PNG`` draws where the gap lies.
 
 The diagnosis starts from the estimate ``labid identify`` reports with the same
-``--params``, ``--start`` and ``--prior``. The console shows the verdict, the gap
+``--params``, ``--start`` and ``--prior`` (``--estimate``: that result, read from
+its ``--json`` file instead of identifying again). The console shows the verdict, the gap
 before -> after, the top three candidates with magnitudes and units, the
 pairing findings, and where each output file went; progress goes to stderr.
 """
 from __future__ import annotations
 
+import json
+import math
 import sys
+from pathlib import Path
 
 from engine.gap import GapOptions
 
@@ -23,6 +27,7 @@ from . import services
 from .cmdutil import add_json_option
 from .diagnosis import load_features, plot_gap, run_diagnosis
 from .errors import UserError
+from .inputfiles import read_text_file
 from .estimation import parse_assignments
 
 
@@ -39,8 +44,37 @@ def register(sub) -> None:
     p.add_argument("--start", metavar="P=V,..", help="initial values in SI units (as labid identify --start)")
     p.add_argument("--prior", type=float, default=None, metavar="S",
                    help="prior std of log(p) about the start (as labid identify --prior; default none)")
+    p.add_argument("--estimate", metavar="IDENTIFY.json",
+                   help="start from this labid identify --json result of the same features (and the same "
+                        "--start/--prior) instead of identifying again")
     add_json_option(p)
     p.set_defaults(func=run)
+
+
+def read_estimate(path: str, doc: dict, names) -> dict:
+    """A ``labid identify --json`` result to start the diagnosis from, checked against the
+    features ``doc`` (every parameter with a finite positive value, one pairing row per peak)."""
+    text = read_text_file(Path(path), "a labid identify JSON result")
+    try:
+        est = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise UserError(f"not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})", file=path) from None
+    par = est.get("parameters") if isinstance(est, dict) else None
+    if not isinstance(par, dict) or not par:
+        raise UserError("missing or empty; expected the 'parameters' of a labid identify --json result",
+                        file=path, key="parameters")
+    for n, d in par.items():
+        v = d.get("value") if isinstance(d, dict) else None
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise UserError(f"value {v!r}: expected a positive number (SI)", file=path, key=f"parameters.{n}.value")
+    if names is not None and tuple(par) != tuple(names):
+        raise UserError(f"parameters {list(par)} differ from --params {list(names)}", file=path, key="parameters")
+    n_peaks = len((doc.get("modal") or {}).get("frequencies_hz") or [])
+    pairing = est.get("pairing")
+    if isinstance(pairing, list) and len(pairing) != n_peaks:
+        raise UserError(f"{len(pairing)} pairing rows for {n_peaks} peaks: not a result of these features",
+                        file=path, key="pairing")
+    return est
 
 
 def run(args) -> dict:
@@ -55,7 +89,9 @@ def run(args) -> dict:
         raise UserError(f"value {args.prior!r}: expected a positive number", key="--prior")
     start = parse_assignments(args.start, "--start")
     doc, base = load_features(args.features)
-    res = run_diagnosis(doc, base, args.features, GapOptions(alpha=args.alpha), names, start, args.prior)
+    est = read_estimate(args.estimate, doc, names) if args.estimate else None
+    res = run_diagnosis(doc, base, args.features, GapOptions(alpha=args.alpha), names, start, args.prior,
+                        estimate=est)
     out = sys.stdout if args.json != "-" else sys.stderr
     _print(res, out)
     if args.plot:

@@ -125,3 +125,27 @@ def test_mass_found_when_identify_sets_most_peaks_aside_and_a_mode_is_missing():
     assert res["gap"]["after"] < 1.5 < 50 < res["gap"]["before"]
     assert res["identification"]["pairing_used"] == "re-paired under sensor_mass"
     assert any("pair differently" in n for n in res["diagnosis_notes"])
+
+
+def test_cli_diagnose_from_identify_s_json_result(tmp_path, capsys):
+    """``labid diagnose --estimate`` takes ``labid identify --json``'s result: the same
+    start constants as identifying again; a result of other features is refused in one line."""
+    import json
+    from labid.cli import main
+    f = tmp_path / "f.json"
+    f.write_text(json.dumps(_without_shapes(draw_case(25, "sensor_mass", wave_sets=()).features)))
+    ident, d1, d2 = tmp_path / "id.json", tmp_path / "d1.json", tmp_path / "d2.json"
+    assert main(["identify", str(f), "--params", "E1,E2,G12", "--json", str(ident), "--quiet"]) == 0
+    assert main(["diagnose", str(f), "--params", "E1,E2,G12", "--json", str(d1), "--quiet"]) == 0
+    assert main(["diagnose", str(f), "--params", "E1,E2,G12", "--estimate", str(ident), "--json", str(d2),
+                 "--quiet"]) == 0
+    r1, r2 = json.loads(d1.read_text()), json.loads(d2.read_text())
+    assert r2["constants"]["before"] == pytest.approx(r1["constants"]["before"], rel=1e-12)
+    assert r2["verdict"] == r1["verdict"] == "sensor_mass"
+    capsys.readouterr()
+    other = tmp_path / "other.json"
+    doc = _without_shapes(draw_case(25, "sensor_mass", wave_sets=()).features, drop=(1,))
+    other.write_text(json.dumps(doc))
+    assert main(["diagnose", str(other), "--params", "E1,E2,G12", "--estimate", str(ident), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pairing" in err[0] and "id.json" in err[0]
