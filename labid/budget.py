@@ -22,6 +22,8 @@ hands the changes to :func:`engine.fit.budget.gum_budget` (dp/dx = -J^+ dr/dx).
 """
 from __future__ import annotations
 
+import math
+
 import tomllib
 from importlib import resources
 from pathlib import Path
@@ -244,6 +246,9 @@ def budget_text(b: Mapping[str, Any]) -> str:
         rel = f" ({100 * c['U_rel']:.2g} %)" if c.get("U_rel") is not None else ""
         lines.append(f"  {n:>7} = {c['value'] * sc:10.4g} +- {c['U'] * sc:.3g}{unit}{rel}  "
                      f"[u_c {c['u_combined'] * sc:.3g}: type A {c['u_type_a'] * sc:.3g}, type B {c['u_type_b'] * sc:.3g}]")
+        if not math.isfinite(c["u_combined"]):
+            lines.append("           no budget: the fit does not determine this constant (infinite type-A std)")
+            continue
         rows = sorted(c["contributions"].items(), key=lambda kv: -kv[1]["u"])
         lines.append("           " + ", ".join(f"{k} {v['u'] * sc:.2g} ({100 * v['share']:.0f} %)"
                                               for k, v in rows if v["share"] >= 0.005))

@@ -112,7 +112,10 @@ def _identify(args: argparse.Namespace, client) -> dict:
 def _print(out: dict, names) -> None:
     w = sys.stdout.write
     fit = out["fit"]
-    if not fit["consistent"]:
+    if not fit["consistent"] and fit.get("unexplained_peaks"):
+        w(f"INCONSISTENT FIT: {fit['unexplained_peaks']} of {len(out.get('pairing') or [])} peaks match no "
+          "predicted mode: the constants below are NOT identified (labid diagnose looks for the cause)\n")
+    elif not fit["consistent"]:
         w(f"INCONSISTENT FIT: chi^2/nu = {fit['chi2_per_dof']:.3g} (p = {fit['p_value']:.2g}): the constants "
           "below are NOT identified\n")
     elif not fit["identified"]:

@@ -79,6 +79,7 @@ class Budget:
         consts = {}
         for j, n in enumerate(self.names):
             uc2 = float(self.u_combined[j]) ** 2
+            uc2 = uc2 if np.isfinite(uc2) else 0.0     # undetermined constant: no shares
             rows = {"type A (fit)": {"sensitivity": None, "u": float(self.u_type_a[j]),
                                      "share": float(self.u_type_a[j] ** 2 / uc2) if uc2 > 0 else 0.0}}
             for i, x in enumerate(self.inputs):
