@@ -150,7 +150,53 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous)
 
 
+class _PipeSafe:
+    """stdout that survives a reader leaving (``labid identify ... | head``): on a broken
+    pipe further console text is dropped (the descriptor now points at the null device),
+    while the command goes on and writes its results (``--json``, the run file)."""
+
+    def __init__(self, stream):
+        self._stream, self.broken = stream, False
+
+    def write(self, text: str) -> int:
+        if not self.broken:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._drop()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.broken:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._drop()
+
+    def _drop(self) -> None:
+        self.broken = True
+        try:                                    # Python's own flush at exit must not fail either
+            fd = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(fd, self._stream.fileno())
+            os.close(fd)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def _run(args) -> int:
+    stdout = sys.stdout
+    sys.stdout = _PipeSafe(stdout)
+    try:
+        return _run_command(args)
+    finally:
+        sys.stdout.flush()
+        sys.stdout = stdout
+
+
+def _run_command(args) -> int:
     try:
         threads.configure(args.threads)
         progress.set_quiet(args.quiet)

@@ -658,3 +658,22 @@ def test_the_panel_opens_a_damaged_run_without_an_uncaught_exception(tmp_path, h
     w.deleteLater()
     app.processEvents()
     assert hooked == []
+
+
+def test_a_reader_leaving_the_pipe_loses_no_result(tmp_path, monkeypatch, capsys):
+    """``labid ... | head``: a broken stdout pipe drops the console text, not the results:
+    the command still writes its --json file and exits 0, with no crash report."""
+    import io
+
+    class Gone(io.StringIO):
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def fileno(self):
+            raise io.UnsupportedOperation("no descriptor")
+
+    monkeypatch.setattr(sys, "stdout", Gone())
+    out = tmp_path / "disp.json"
+    assert cli.main(["dispersion", "cfrp", "--fmax", "50000", "--n", "20", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())
+    assert "internal error" not in capsys.readouterr().err
