@@ -53,9 +53,9 @@ def run(cmd: list[str]) -> tuple[int, dict, float]:
 
 
 def main_() -> int:
-    print("| plate | peaks | identify chi^2/n | diagnose verdict | gap before -> after | chi^2 / threshold | "
-          "top candidate | where (first) | CPU s |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| plate | peaks | identify chi^2/n (paired peaks) | identify fit | diagnose verdict | gap before -> after | "
+          "chi^2 / threshold | top candidate | where (first) | CPU s |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as td:
         for plate in PEAKS:
             fp = Path(td) / f"plate{plate}.json"
@@ -67,18 +67,21 @@ def main_() -> int:
                           for b in ident["blocks"].values())
             code, res, cpu = run(["diagnose", str(fp), "--params", NAMES])
             if code != 0:
-                print(f"| {plate} | {len(PEAKS[plate])} | | exit {code} | | | | | {cpu:.1f} |")
+                print(f"| {plate} | {len(PEAKS[plate])} | | | exit {code} | | | | | {cpu:.1f} |")
                 continue
             g = res["gap"]
             top = res["effects"][0] if res["effects"] else None
             tops = f"{top['name']} {top['magnitude']:.3g} {top['unit']}" if top else ""
             where = res["where"][0] if res["where"] else ""
             chin = f"{chi / len(PEAKS[plate]):.2f}" if chi is not None else "?"
-            print(f"| {plate} | {len(PEAKS[plate])} | {chin} | {res['verdict']} | {g['before']:.2f} -> "
+            fit = ident.get("fit") or {}
+            un = sum(1 for r in ident.get("pairing") or [] if r.get("mode_index") is None)
+            fits = ("consistent" if fit.get("consistent") else "INCONSISTENT") + (f", {un} peaks unpaired" if un else "")
+            print(f"| {plate} | {len(PEAKS[plate])} | {chin} | {fits} | {res['verdict']} | {g['before']:.2f} -> "
                   f"{g['after']:.2f} | {g['chi2_before']:.1f} / {g['threshold_chi2']:.1f} | {tops} | "
                   f"{where} | {cpu:.1f} |")
             if res.get("pairing"):
-                print(f"|  | pairing: {'; '.join(res['pairing']['findings'][:3])} | | | | | | | |")
+                print(f"|  | pairing: {'; '.join(res['pairing']['findings'][:3])} | | | | | | | | |")
     return 0
 
 
