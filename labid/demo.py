@@ -133,7 +133,9 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
             step(f"    {ds}: no data")
             continue
         start = {n: v for n, v in DATASHEET_START.items() if ds != "waves" or n in WAVES_PARAMS}
-        results[ds] = res = services.run_identification(doc, base_dir=out, src=str(features_path), start=start)
+        # the combined result is the report's certificate: with its GUM budget (u_c, U at k = 2)
+        results[ds] = res = services.run_identification(doc, base_dir=out, src=str(features_path), start=start,
+                                                        budget=ds == "combined")
         step(f"    {ds}: {'converged' if res['converged'] else 'NOT converged'} in {res['seconds']:.1f} s")
     for ds, res in results.items():
         services.store_result(run, "identification" if ds == "combined" else f"identification_{ds}", res)
