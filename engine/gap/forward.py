@@ -75,6 +75,14 @@ class GapForward(ForwardModel):
         self._misalign = 0.0
 
     # -- modal -------------------------------------------------------------
+    @property
+    def selection(self) -> np.ndarray | None:
+        """Per measured peak the predicted elastic-mode index the pairing is fixed to
+        (-1: a peak left unexplained); None when the pairing is not fixed."""
+        if self._selection is None:
+            return None
+        return np.where(self.unexplained, -1, self._selection)
+
     def modal_forward(self, mass: float = 0.0, spring: float = 0.0, thickness: float = 0.0):
         """As ``ForwardModel.modal_forward``; with a fixed ``pairing`` built here (small cache)."""
         if self.pairing is None:

@@ -29,7 +29,8 @@ from .forward import GapForward
 from .refit import Refit, RefitError, refit
 from .residuals import GapFit
 
-__all__ = ["Pairing", "current_selection", "state", "tolerance", "most_likely", "with_selection", "shape_paired", "pairing_of", "penalty",
+__all__ = ["Pairing", "current_selection", "state", "tolerance", "most_likely", "with_selection", "shape_paired",
+           "pairing_of", "penalty",
            "MAX_ROUNDS", "TAU_RANGE",
            "repaired", "repair_note"]
 
@@ -56,12 +57,9 @@ def current_selection(F: GapFit) -> np.ndarray | None:
     n = fw.n_modal
     if not n:
         return None
-    sel = getattr(fw, "_selection", None) if isinstance(fw, GapForward) else None
+    sel = fw.selection if isinstance(fw, GapForward) else None
     if sel is not None:
-        idx = np.asarray(sel, int).copy()
-        if fw.unexplained is not None:
-            idx[np.asarray(fw.unexplained, bool)] = -1
-        return idx
+        return np.asarray(sel, int).copy()
     if getattr(fw, "pairing", None) == "order":
         return np.arange(n)
     return None
@@ -200,7 +198,8 @@ def repaired(name: str, rf: Refit, F: GapFit, w: np.ndarray, theta_prior: np.nda
                 if Fs is None:
                     continue
                 try:
-                    rs = refit(name, a_start if a_start is not None else rf.magnitude, Fs, theta, w, theta_prior, fl, max_nfev)
+                    rs = refit(name, a_start if a_start is not None else rf.magnitude, Fs, theta, w, theta_prior,
+                               fl, max_nfev)
                     idx = pairing_of(Fs, rs.constants, {name: rs.magnitude})
                 except (RefitError, ValueError, np.linalg.LinAlgError):
                     continue
