@@ -177,13 +177,15 @@ MAX_UNEXPLAINED = 2
 MAX_UNEXPLAINED_FRACTION = 0.25
 
 
-def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True) -> tuple[Estimate, list[str]]:
+def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True,
+            extra_flags: Mapping[str, str] | None = None) -> tuple[Estimate, list[str]]:
     """(Estimate with the ``fit`` verdict, notes).
 
     ``fit``: chi2 and p-value against the sigmas as given (before any Birge scaling),
     dof, ``consistent`` (p >= 1e-3), ``std_scale`` (the stds are multiplied by
     sqrt(chi^2/nu) whenever chi^2/nu > 1: they grow monotonically with the misfit),
-    ``flags`` ({parameter: reason}: runaway or at the admissible edge) and
+    ``flags`` ({parameter: reason}: runaway or at the admissible edge, or ``extra_flags``
+    such as an ambiguous constant) and
     ``identified`` (consistent and every parameter identified). A constant is
     identified only when its relative std is below the threshold, it is not flagged and
     the fit is consistent.
@@ -211,7 +213,7 @@ def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True) -> tup
     factor = math.sqrt(chi2_scaled / fit["dof"]) if scale_sigmas and chi2_scaled > fit["dof"] else 1.0
     est = checks.scale_uncertainty(est, factor)
     fit["std_scale"] = factor * math.sqrt(max([v * v for v in scale.values()] or [1.0]))
-    flags = admissibility(ctx, est.params)
+    flags = {**(extra_flags or {}), **admissibility(ctx, est.params)}
     ident = dict(est.identifiability)
     params = {}
     for n, d in ident["parameters"].items():
