@@ -45,16 +45,28 @@ def parabola_peak(triplet: list) -> float:
     return math.exp(0.5 * (x[0] + x[1]) - d1 / (2 * a) if a else x[1])
 
 
-def cases(data: dict) -> list[tuple[str, int, list[float]]]:
-    """(label, plate, peaks Hz) for every plate with both the authors' constants and a peak list."""
+def cases(data: dict) -> list[tuple[str, int, list[float], str]]:
+    """(label, plate, peaks Hz, which authors' version holds the fixed constants) for every plate with
+    the authors' constants and a peak list. Measured peaks: the index's default version ("authors",
+    as bench/badiane_authors.py); the model FRF: the version it was computed with."""
     out = []
     for key, d in data["plates"].items():
         if d.get("authors") and d.get("measured_peaks_hz"):
-            out.append(("measured", int(key), d["measured_peaks_hz"]))
+            out.append(("measured", int(key), d["measured_peaks_hz"], "authors"))
         if d.get("authors") and d.get("model_frf"):
             out.append(("authors' model FRF", int(key),
-                        [round(parabola_peak(t), 2) for t in d["model_frf"]["triplets_f_re_im"]]))
+                        [round(parabola_peak(t), 2) for t in d["model_frf"]["triplets_f_re_im"]],
+                        "authors_other_version"))
     return out
+
+
+def labid_modes(spec: Path, n: int, td: str) -> list[float]:
+    """labid's free-free frequencies (Hz) of a specimen file (``labid modes``)."""
+    out = Path(td) / "modes.json"
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        main(["modes", str(spec), "--n", str(n), "--json", str(out), "--quiet"])
+    r = json.loads(out.read_text())
+    return r["frequencies_hz"]
 
 
 def run(cmd: list[str], out: Path) -> tuple[int, dict, float]:
@@ -70,8 +82,10 @@ def main_() -> int:
           "G12 GPa (authors', CV %) | diagnose | where (first) | CPU s |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as td:
-        for label, plate, f in cases(data):
-            auth = data["plates"][str(plate)]["authors"]
+        notes = []
+        for label, plate, f, version in cases(data):
+            auth = data["plates"][str(plate)][version]
+            other = data["plates"][str(plate)].get("authors_other_version" if version == "authors" else "authors")
             c, cv = auth["constants_si"], auth["second_row"]
             a = dict(c, T=c["T"])
             sp = Path(td) / f"p{plate}.toml"
@@ -108,6 +122,20 @@ def main_() -> int:
             print(f"| {plate} | {label} | {len(f)} | {verdict} | {cell('E1')} | {cell('E2')} | {cell('G12')} | "
                   f"{dv} | {where} | {cpu1 + cpu2:.1f} |")
             print(f"|  | peaks Hz: {', '.join(f'{x:g}' for x in f)} | | | | | | | | |")
+            vs = f"held and compared: commit {auth['commit'][:7]}"
+            if other:
+                vs += f"; against commit {other['commit'][:7]}: " + ", ".join(
+                    f"{n} {100 * (p[n]['value'] / other['constants_si'][n] - 1):+.0f} % "
+                    f"({(p[n]['value'] - other['constants_si'][n]) / p[n]['std']:+.1f} std)" for n in NAMES)
+            print(f"|  | {vs} | | | | | | | | |")
+            if label != "measured":
+                m = sorted(labid_modes(sp, 2 * len(f), td))
+                near = [min(m, key=lambda x: abs(x - v)) for v in f]
+                notes.append(f"plate {plate}: labid modes at commit {auth['commit'][:7]}'s constants vs the peaks of "
+                             f"the authors' model FRF: " + ", ".join(f"{v:g}->{x:.2f} ({100 * (x / v - 1):+.1f} %)"
+                                                                      for v, x in zip(f, near)))
+        for line in notes:
+            print("\n" + line)
     return 0
 
 
