@@ -87,9 +87,8 @@ def main_() -> int:
             auth = data["plates"][str(plate)][version]
             other = data["plates"][str(plate)].get("authors_other_version" if version == "authors" else "authors")
             c, cv = auth["constants_si"], auth["second_row"]
-            a = dict(c, T=c["T"])
             sp = Path(td) / f"p{plate}.toml"
-            sp.write_text(specimen(a, plate))
+            sp.write_text(specimen(c, plate))
             fp = Path(td) / f"p{plate}{len(label)}.json"
             fp.write_text(json.dumps({"specimen": str(sp), "modal": {
                 "frequencies_hz": f, "sigma_hz": [SIGMA_REL * v for v in f]},
