@@ -14,6 +14,7 @@ G23 density`` or ``E G nu density``).
 """
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
@@ -23,7 +24,7 @@ from ..fit import DataBlock, IdentificationError
 from .pairing import Assignment, assign, visibility
 
 __all__ = ["mac", "pair_by_mac", "pair_by_frequency", "ModalSolution", "ModalForward", "SelectedModes",
-           "modal_block", "MIN_MAC_POINTS", "PAIR_REL_FREQ", "extra_modes"]
+           "modal_block", "MIN_MAC_POINTS", "PAIR_REL_FREQ", "extra_modes", "params_key", "MODES_KEPT"]
 
 #: fewer shape points than this: measured modes are paired once, at the nominal
 #: model, by log-frequency distance / PAIR_REL_FREQ + (1 - MAC) (Hungarian)
@@ -71,7 +72,8 @@ def pair_by_frequency(measured_hz, predicted_hz, mac_values: np.ndarray | None =
 MODES_KEPT = 8
 
 
-def _key(params: Mapping[str, float]) -> tuple:
+def params_key(params: Mapping[str, float]) -> tuple:
+    """A hashable key of a parameter set (``dict(key)`` gives the set back)."""
     return tuple(sorted((k, float(v)) for k, v in params.items()))
 
 
@@ -131,11 +133,11 @@ class ModalForward:
         self.n_solve = self.n + (n_extra if self.shapes is not None or self.observed is not None else 0)
         self.min_mac = min_mac
         self._cache: tuple | None = None
-        #: the plate model's modes at the last few parameter sets (params key -> Modes):
-        #: the fit re-solves the same constants (Jacobian after a rejected trial, re-pairing,
-        #: the global stage, the verdict); measured: 12 of 91 solves of `labid identify` on
-        #: the demo's features were repeats (~1.2 s CPU)
-        self._modes: dict[tuple, Any] = {}
+        #: the plate model's modes at the last few parameter sets: the fit re-solves the same
+        #: constants (Jacobian after a rejected trial, re-pairing, the global stage, the
+        #: verdict); measured: 12 of 91 solves of `labid identify` on the demo's features were
+        #: repeats (~1.2 s CPU)
+        self._modes_of_key = lru_cache(maxsize=MODES_KEPT)(self._solve_key)
         self._ref_shapes: np.ndarray | None = None
         self.warnings: list[str] = []
         self.pairing: np.ndarray = np.arange(self.n)
@@ -143,7 +145,7 @@ class ModalForward:
 
     def solve(self, params: Mapping[str, float]) -> ModalSolution:
         """Modes of the model at ``params``, the pairing and its warnings."""
-        key = _key(params)
+        key = params_key(params)
         if self._cache is not None and self._cache[0] == key:
             return self._cache[1]
         modes = self.modes_at(params)
@@ -183,14 +185,10 @@ class ModalForward:
     def modes_at(self, params: Mapping[str, float]):
         """The model's ``n_solve`` lowest elastic modes at ``params`` (memoised: the last
         MODES_KEPT parameter sets; the solve is deterministic)."""
-        key = _key(params)
-        modes = self._modes.pop(key, None)     # re-inserted last: least recently used goes first
-        if modes is None:
-            modes = self.model.solve(self.n_solve, params=dict(params), material=self.material)
-            if len(self._modes) >= MODES_KEPT:
-                self._modes.pop(next(iter(self._modes)))
-        self._modes[key] = modes
-        return modes
+        return self._modes_of_key(params_key(params))
+
+    def _solve_key(self, key: tuple):
+        return self.model.solve(self.n_solve, params=dict(key), material=self.material)
 
     @property
     def likelihood_pairing(self) -> bool:

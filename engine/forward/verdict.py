@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from ..fit import DataBlock, Estimate, checks
 from ..laminate import Material, PhysicsError
+from .modal import params_key
 
 __all__ = ["FitContext", "bounds", "boxed", "admissibility", "systematic", "verdict", "RUNAWAY", "BOX",
            "POISSON_MAX"]
@@ -121,19 +123,12 @@ def boxed(ctx: FitContext, blocks: Sequence[DataBlock]) -> list[DataBlock]:
         # (the Jacobian at each stage's start, the fresh one confirming convergence, the
         # covariance's): measured on the demo's combined identification, 165 of 429 SAFE
         # predictions were repeats (~0.024 s CPU each); the predictions are deterministic
-        cache: dict[tuple, np.ndarray] = {}
+        of_key = lru_cache(maxsize=FD_KEPT)(lambda key: np.array(fn(dict(key)), float))
 
         def cached(params, *a):
             if a:
                 return fn(params, *a)
-            key = tuple(sorted((k, float(v)) for k, v in params.items()))
-            y = cache.get(key)
-            if y is None:
-                y = np.array(fn(params), float)
-                if len(cache) >= FD_KEPT:
-                    cache.pop(next(iter(cache)))
-                cache[key] = y
-            return y.copy()
+            return of_key(params_key(params)).copy()
         return cached
 
     return [replace(b, predict=guard(b.predict if b.jacobian is not None else memo(b.predict)),
