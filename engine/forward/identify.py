@@ -92,15 +92,18 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     if like and global_stage:          # every method: the Lai-Ip update needs a good start as much
         starts, note, ranked = global_starts(ctx, names, st, fixed)
         pair_notes.append(note)
+    def fit_paired(start_: Mapping[str, float]) -> Estimate:
+        """A fit from ``start_``, with its own likelihood pairing (re-paired until it stands)."""
+        if not like:
+            return fit(start_)
+        fwd.reset_pairing()
+        e_, notes_ = _repair_loop(ctx, fit(start_), fit, st)
+        return replace(e_, fit={"assignment": fwd.assignment, "notes": notes_})
+
     tried: list[Estimate] = []
     for k, s0 in enumerate(starts):
-        if like:
-            fwd.reset_pairing()
         try:
-            e = fit(s0)
-            if like:
-                e, notes_ = _repair_loop(ctx, e, fit, st)
-                e = replace(e, fit={"assignment": fwd.assignment, "notes": notes_})
+            e = fit_paired(s0)
         except ValueError:   # a candidate start outside the admissible region: the next one
             if k < len(starts) - 1 or tried:
                 continue
@@ -115,11 +118,8 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
         # as well makes the constants it moves ambiguous. Measured on real data (Badiane et
         # al.'s spruce plate 9, 8 peaks): E2 0.98 GPa from a generic start, 0.51 GPa from the
         # authors' values, both consistent; the first was reported with a 1.7 % std
-        fwd.reset_pairing()
         try:
-            e = fit(rival)
-            e, notes_ = _repair_loop(ctx, e, fit, st)
-            tried.append(replace(e, fit={"assignment": fwd.assignment, "notes": notes_}))
+            tried.append(fit_paired(rival))
         except ValueError:
             pass
     est = min(tried, key=_penalised)
@@ -217,10 +217,15 @@ def _fits(est: Estimate) -> bool:
     return chi2 <= n + 3.0 * math.sqrt(2.0 * n)
 
 
+def _best_constrained(ctx: FitContext, names) -> list[str]:
+    """The constants modal data constrain best (E1, E2, G12; isotropic E, G) among ``names``."""
+    return [n for n in (("E", "G") if ctx.isotropic else ("E1", "E2", "G12")) if n in names]
+
+
 def _rival_start(est: Estimate, ranked: Sequence[Mapping[str, float]], ctx: FitContext) -> dict | None:
     """The best-ranked global-stage candidate more than RIVAL_LOG away from ``est`` in E1,
     E2 or G12 (isotropic: E, G), or None."""
-    keys = [n for n in (("E", "G") if ctx.isotropic else ("E1", "E2", "G12")) if n in est.params]
+    keys = _best_constrained(ctx, est.params)
     for c in ranked:
         if keys and max(abs(math.log(c[n] / est.params[n])) for n in keys) > RIVAL_LOG:
             return dict(c)
@@ -265,7 +270,7 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
     N_GLOBAL_FITS distinct starts (more than 5 % apart), best first; also every candidate
     as a start, best first (for :func:`_rival_start`)."""
     fwd = ctx.modal_forward
-    best_names = [n for n in (("E", "G") if ctx.isotropic else ("E1", "E2", "G12")) if n in names]
+    best_names = _best_constrained(ctx, names)
     if not best_names:
         return [dict(start)], "global stage: skipped (no E1, E2, G12 / E, G fitted)", []
     elastic = ("E", "G") if ctx.isotropic else ("E1", "E2", "nu12", "G12", "G13", "G23")
