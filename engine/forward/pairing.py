@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ["Assignment", "assign", "visibility", "SPURIOUS", "MISS", "MISS_UNKNOWN", "V_SEEN", "GRID"]
+__all__ = ["Assignment", "assign", "miss_penalties", "visibility", "SPURIOUS", "MISS", "MISS_UNKNOWN", "V_SEEN", "GRID"]
 
 #: cost (chi^2 units) of a peak no predicted mode explains
 SPURIOUS = 16.0
@@ -69,6 +69,18 @@ def visibility(model, modes, response_points, drive_points=None, length: float |
     return np.clip(v, 0.0, 1.0)
 
 
+def miss_penalties(predicted_hz, highest_peak_hz: float, visible=None, tau: float = 0.01,
+                   miss: float = MISS) -> np.ndarray:
+    """Per predicted mode, the cost of no peak explaining it: ``miss`` x min(1, (v / V_SEEN)^2)
+    for a mode in band (below the highest peak by more than 3 tolerances), MISS_UNKNOWN
+    without visibilities; 0 out of band."""
+    fp = np.asarray(predicted_hz, float)
+    in_band = fp < highest_peak_hz * (1.0 - 3.0 * tau)
+    if visible is None:
+        return np.where(in_band, MISS_UNKNOWN if miss == MISS else miss, 0.0)
+    return np.where(in_band, miss * np.minimum(1.0, (np.asarray(visible, float) / V_SEEN) ** 2), 0.0)
+
+
 def assign(measured_hz, sigma_hz, predicted_hz, visible=None, tau: float = 0.01, *,
            spurious: float = SPURIOUS, miss: float = MISS, fixed=None) -> Assignment:
     """The most likely pairing of measured peaks with predicted modes (module docstring).
@@ -85,10 +97,7 @@ def assign(measured_hz, sigma_hz, predicted_hz, visible=None, tau: float = 0.01,
     sp = np.sqrt(s ** 2 + (tau * f) ** 2)
     pair = ((f[:, None] - fp[None, :]) / sp[:, None]) ** 2
     in_band = fp < f.max() * (1.0 - 3.0 * tau)
-    if visible is None:
-        pen = np.where(in_band, MISS_UNKNOWN if miss == MISS else miss, 0.0)
-    else:
-        pen = np.where(in_band, miss * np.minimum(1.0, (np.asarray(visible, float) / V_SEEN) ** 2), 0.0)
+    pen = miss_penalties(fp, f.max(), visible, tau, miss)
     big = 1e12
     cost = np.full((n, m + n), big)
     cost[:, :m] = np.minimum(pair - pen[None, :], big)

@@ -24,7 +24,7 @@ import numpy as np
 from ..forward import F_REF, temperature_params
 from ..forward.modal import extra_modes
 from ..forward.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
-from ..forward.pairing import MISS, MISS_UNKNOWN, SPURIOUS, V_SEEN, assign, visibility
+from ..forward.pairing import SPURIOUS, assign, miss_penalties, visibility
 from .forward import GapForward
 from .refit import Refit, RefitError, refit
 from .residuals import GapFit
@@ -92,10 +92,7 @@ def penalty(index: np.ndarray, f_pred: np.ndarray, visible, y: np.ndarray, tau: 
     index = np.asarray(index, int)
     in_band = np.flatnonzero(f_pred < y.max() * (1.0 - 3.0 * tau))
     skipped = np.array(sorted(set(in_band.tolist()) - set(index[index >= 0].tolist())), int)
-    if visible is None:
-        miss = MISS_UNKNOWN * skipped.size
-    else:
-        miss = float(np.sum(MISS * np.minimum(1.0, (np.asarray(visible, float)[skipped] / V_SEEN) ** 2)))
+    miss = float(np.sum(miss_penalties(f_pred, y.max(), visible, tau)[skipped]))
     return Pairing(index, skipped, float(SPURIOUS * np.sum(index < 0) + miss))
 
 
@@ -129,6 +126,14 @@ def most_likely(F: GapFit, f_pred: np.ndarray, visible, tau: float) -> Pairing:
     return penalty(a.index, f_pred, visible, y, tau)
 
 
+def _forward_like(F: GapFit, **pairing) -> GapForward:
+    """A GapForward of ``F``'s problem sharing its plate model and SAFE solver (and so the
+    latter's cache), paired as ``pairing`` says (``pairing=`` or ``selection=``)."""
+    fw = GapForward(F.problem, safe_order=F.fw.safe_order, plate_model=F.fw.base, **pairing)
+    fw.safe = F.fw.safe
+    return fw
+
+
 def shape_paired(F: GapFit) -> GapFit | None:
     """``F`` with the peaks paired at every evaluation by their measured shapes (MAC, or
     log-frequency plus 1 - MAC below ``MIN_MAC_POINTS`` points: ``engine.forward.ForwardModel``'s
@@ -136,10 +141,7 @@ def shape_paired(F: GapFit) -> GapFit | None:
     md = F.problem.modal
     if md is None or md.shapes is None or md.points is None:
         return None
-    fw = F.fw
-    fw2 = GapForward(F.problem, safe_order=fw.safe_order, plate_model=fw.base, pairing="order")
-    fw2.safe = fw.safe
-    return GapFit(F.problem, fw2, F.model_rel_sigma, names=F.names)
+    return GapFit(F.problem, _forward_like(F, pairing="order"), F.model_rel_sigma, names=F.names)
 
 
 def pairing_of(F: GapFit, params: Mapping[str, float], effects: Mapping[str, float]) -> np.ndarray:
@@ -152,9 +154,7 @@ def with_selection(F: GapFit, index: np.ndarray) -> GapFit:
     """``F`` with the peaks paired by ``index`` (per peak a predicted mode, -1: unexplained):
     the same plate model, SAFE solver, corrections and whitening rule."""
     fw = F.fw
-    sel = [None if j < 0 else int(j) for j in np.asarray(index, int)]
-    fw2 = GapForward(F.problem, safe_order=fw.safe_order, plate_model=fw.base, selection=sel)
-    fw2.safe = fw.safe                       # keep the SAFE solver's cache
+    fw2 = _forward_like(F, selection=[None if j < 0 else int(j) for j in np.asarray(index, int)])
     model_sigma = None
     if F.mode_correction is not None:
         ratio, err = F.mode_correction.at(index)
