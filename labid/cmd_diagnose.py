@@ -16,10 +16,8 @@ pairing findings, and where each output file went; progress goes to stderr.
 """
 from __future__ import annotations
 
-import json
 import math
 import sys
-from pathlib import Path
 
 from engine.gap import GapOptions
 
@@ -27,7 +25,7 @@ from . import services
 from .cmdutil import add_json_option
 from .diagnosis import load_features, plot_gap, run_diagnosis
 from .errors import UserError
-from .inputfiles import read_text_file
+from .inputfiles import read_json_file
 from .estimation import parse_assignments
 
 
@@ -54,11 +52,7 @@ def register(sub) -> None:
 def read_estimate(path: str, doc: dict, names) -> dict:
     """A ``labid identify --json`` result to start the diagnosis from, checked against the
     features ``doc`` (every parameter with a finite positive value, one pairing row per peak)."""
-    text = read_text_file(Path(path), "a labid identify JSON result")
-    try:
-        est = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise UserError(f"not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})", file=path) from None
+    est = read_json_file(path, "a labid identify JSON result")
     par = est.get("parameters") if isinstance(est, dict) else None
     if not isinstance(par, dict) or not par:
         raise UserError("missing or empty; expected the 'parameters' of a labid identify --json result",

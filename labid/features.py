@@ -33,7 +33,7 @@ import numpy as np
 from engine.features import Features, ModalData, RigLayout, WaveData
 
 from .errors import UserError
-from .inputfiles import read_text_file
+from .inputfiles import read_json_file
 from .featurelimits import (LIMITS, MAX_SPECIMEN_BYTES, MODAL_KEYS, RIG_KEYS, SHAPES_KEYS, TOP_KEYS,
                             WAVE_KEYS, check_keys, mode_index, position, within)
 from .specimen import BUILTIN, Specimen, load_specimen, specimen_from_dict
@@ -241,12 +241,7 @@ def validate_features(doc: Any, src: str = "<features>") -> dict:
 def read_features(path: str | Path) -> dict:
     """Read and validate a features JSON file."""
     p = Path(path)
-    text = read_text_file(p, "a features JSON file")
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise UserError(f"not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})", file=str(p)) from None
-    return validate_features(doc, str(p))
+    return validate_features(read_json_file(p, "a features JSON file"), str(p))
 
 
 def specimen_of(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>") -> Specimen:

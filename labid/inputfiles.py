@@ -3,9 +3,11 @@ files, at most ``MAX_BYTES``, UTF-8; every refusal one ``UserError`` naming the 
 never echoing its content (``/dev/zero`` read to the end exhausted the memory)."""
 from __future__ import annotations
 
+import json
 import os
 import stat
 from pathlib import Path
+from typing import Any
 
 from .errors import UserError
 
@@ -42,3 +44,13 @@ def read_text_file(path: str | Path, what: str, max_bytes: int = MAX_BYTES) -> s
         return data.decode("utf-8")
     except UnicodeDecodeError as e:
         raise UserError(f"not UTF-8 text (byte {e.start}); expected {what}", file=p) from None
+
+
+def read_json_file(path: str | Path, what: str) -> Any:
+    """The parsed JSON of ``path`` (``read_text_file``); invalid JSON is one ``UserError``
+    naming the file, line and column."""
+    text = read_text_file(path, what)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise UserError(f"not valid JSON ({e.msg} at line {e.lineno}, column {e.colno})", file=str(path)) from None
