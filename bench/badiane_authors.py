@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench.gap_real import PEAKS, SIGMA_REL  # noqa: E402
-from labid.cli import main  # noqa: E402
+from labid.cli.main import main  # noqa: E402
 
 #: the authors' Results_N first rows (SI): rho, Ex, Ey, Ez, Gxy, Gyz, Gxz, vxy, vyz, vxz, L, W, T
 AUTHORS = {

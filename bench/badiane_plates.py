@@ -29,7 +29,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench.badiane_authors import START, specimen  # noqa: E402
-from labid.cli import main  # noqa: E402
+from labid.cli.main import main  # noqa: E402
 
 DATA = ROOT / "bench" / "import_real" / "badiane_plates.json"
 SIGMA_REL = 0.01

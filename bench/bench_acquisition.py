@@ -23,9 +23,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench._machine import machine as _machine  # noqa: E402
 
-from labid.rig import read_rig_text, rig_from_text  # noqa: E402
+from labid.inputs.rig import read_rig_text, rig_from_text  # noqa: E402
 from labid.store import RunStore  # noqa: E402
-from labid.specimen import load_specimen  # noqa: E402
+from labid.inputs.specimen import load_specimen  # noqa: E402
 from mock_hw.rig import SimulatedDevice  # noqa: E402
 
 

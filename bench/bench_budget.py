@@ -1,4 +1,4 @@
-"""GUM uncertainty budget (labid.budget) against a Monte Carlo of the full forward model + fit.
+"""GUM uncertainty budget (labid.workflows.budget) against a Monte Carlo of the full forward model + fit.
 
 Monte Carlo in the manner of GUM Supplement 1 (JCGM 101:2008): every draw takes the
 type-B inputs from their distributions (normal, the budget's standard uncertainties) and
@@ -6,7 +6,7 @@ the measured features with their noise (normal, the stated sigmas), rebuilds the
 model at the drawn inputs and RE-FITS the constants (engine.fit.estimate, Levenberg-
 Marquardt, from the nominal start): no linearisation anywhere. The expanded uncertainty
 of the Monte Carlo is the half-width of the probabilistically symmetric interval of the
-same coverage as k = 2 (95.45 %); the GUM one is U = 2 u_c of labid.budget. The issue's
+same coverage as k = 2 (95.45 %); the GUM one is U = 2 u_c of labid.workflows.budget. The issue's
 target: each within 10 %.
 
 Cases (independent synthetic data computed by the forward models, isotropic aluminium
@@ -32,10 +32,10 @@ import numpy as np
 from engine.fit import estimate
 from engine.forward import modal_block, wave_block
 from engine.plate import PlateModel
-from labid.budget import budget_of_problem
-from labid.estimation import problem_from_features, run
-from labid.specimen import specimen_from_dict
-from labid.synthetic import synthetic_features
+from labid.workflows.budget import budget_of_problem
+from labid.workflows.identification.estimation import problem_from_features, run
+from labid.inputs.specimen import specimen_from_dict
+from labid.workflows.identification.synthetic import synthetic_features
 
 from ._machine import machine
 

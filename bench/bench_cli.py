@@ -38,9 +38,9 @@ def _env() -> dict:
 
 
 def timed(args: list[str]) -> tuple[float, float]:
-    """(wall s, CPU s) of one ``python -m labid.cli args`` process."""
+    """(wall s, CPU s) of one ``python -m labid.cli.main args`` process."""
     t0 = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "labid.cli", *args], env=_env(), cwd=ROOT,
+    proc = subprocess.Popen([sys.executable, "-m", "labid.cli.main", *args], env=_env(), cwd=ROOT,
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, ru = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
@@ -51,7 +51,7 @@ def timed(args: list[str]) -> tuple[float, float]:
 
 def importtime(args: list[str], top: int = 8) -> list[tuple[int, str]]:
     """The ``top`` costliest imports (cumulative us) of one run, outermost packages first."""
-    p = subprocess.run([sys.executable, "-X", "importtime", "-m", "labid.cli", *args], env=_env(), cwd=ROOT,
+    p = subprocess.run([sys.executable, "-X", "importtime", "-m", "labid.cli.main", *args], env=_env(), cwd=ROOT,
                        capture_output=True, text=True)
     rows = []
     for ln in p.stderr.splitlines():

@@ -2,7 +2,7 @@
 
     python bench/bench_demo.py [--out DIR] [--runs N]
 
-Runs ``python -m labid.cli demo --quiet --out DIR`` N times (default 1) in a child process
+Runs ``python -m labid.cli.main demo --quiet --out DIR`` N times (default 1) in a child process
 and prints, per run, the wall time, the child's CPU time (user + system, from
 ``resource.getrusage(RUSAGE_CHILDREN)``), its peak memory and the load average before
 and after, with the machine line of ``bench/_machine.py``. CPU time is the fixed cost;
@@ -27,7 +27,7 @@ def one_run(out: Path) -> dict:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "labid.cli", "demo", "--quiet", "--out", str(out)], check=True,
+    subprocess.run([sys.executable, "-m", "labid.cli.main", "demo", "--quiet", "--out", str(out)], check=True,
                    stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.blind import KINDS, LIBRARY, OUT_OF_LIBRARY, RANGES, draw_case  # noqa: E402
 from engine.gap import GapFit, GapForward, GapOptions  # noqa: E402
-from labid.diagnosis import problem_from_features, run_diagnosis  # noqa: E402
+from labid.workflows.diagnosis import problem_from_features, run_diagnosis  # noqa: E402
 
 #: (kind, count, outside generator); run round-robin over the kinds (see _plan). The
 #: outside clean cases are the false-alarm study on a generator that is not the

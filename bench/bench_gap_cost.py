@@ -7,7 +7,7 @@ Cases (features from bench/blind.py, default mesh, the diagnoser's own generator
   modal3-mass    the same with 4 g extra at each accelerometer: a gap, candidates refitted;
   combined-clean 10 modes with shapes + 5 wave sets (46 velocities), six constants, --prior 0.3;
   demo           (with --demo-features) the features ``labid demo`` wrote, as the demo runs it.
-Each case runs ``python -m labid.cli diagnose ... --quiet`` under ``/usr/bin/time -v``: user +
+Each case runs ``python -m labid.cli.main diagnose ... --quiet`` under ``/usr/bin/time -v``: user +
 system CPU seconds and the maximum resident set size (MiB) of the whole process (interpreter,
 numpy/scipy imports and the diagnosis).
 """
@@ -42,7 +42,7 @@ def measure(features: dict | Path, args: list[str], tmp: Path, tag: str) -> dict
     else:
         f = features
     out = tmp / f"{tag}.diag.json"
-    cmd = ["/usr/bin/time", "-v", sys.executable, "-m", "labid.cli", "diagnose", str(f), "--quiet",
+    cmd = ["/usr/bin/time", "-v", sys.executable, "-m", "labid.cli.main", "diagnose", str(f), "--quiet",
            "--json", str(out)] + args
     env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1", LABID_THREADS="1")
     p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=str(ROOT))

@@ -28,9 +28,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.blind import ACCELEROMETERS, draw_case  # noqa: E402
 from engine.forward.pairing import visibility  # noqa: E402
 from engine.plate import PlateModel  # noqa: E402
-from labid.diagnosis import run_diagnosis  # noqa: E402
-from labid.specimen import specimen_from_dict  # noqa: E402
-from labid.threads import configure  # noqa: E402
+from labid.workflows.diagnosis import run_diagnosis  # noqa: E402
+from labid.inputs.specimen import specimen_from_dict  # noqa: E402
+from labid.base.threads import configure  # noqa: E402
 
 NAMES = ["E1", "E2", "G12"]
 #: (kind, count): library effects that act on modes, clean data, and effects outside the library

@@ -29,9 +29,9 @@ import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 
 from engine.plate import PlateModel  # noqa: E402
-from labid.identification import (multi_start, plot_multi_start, problem_from_features,  # noqa: E402
-                                  random_starts, run, synthetic_features)
-from labid.specimen import load_specimen  # noqa: E402
+from labid.workflows.identification import (multi_start, plot_multi_start, problem_from_features,
+                                            random_starts, run, synthetic_features)
+from labid.inputs.specimen import load_specimen  # noqa: E402
 
 GPA = 1e9
 SIX = ("E1", "E2", "nu12", "G12", "G13", "G23")

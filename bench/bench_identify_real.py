@@ -15,7 +15,7 @@ from a start drawn uniformly within +-30 % of the truth on each, the others at n
 
 Recorded per case: every fitted constant within 2 std of the truth; "confidently wrong"
 (some |error| > 3 std while the fit says consistent); consistent; CPU of the fit
-(``labid.identification.run``: global stage, pairing, fits, verdict) and of the setup
+(``labid.workflows.identification.run``: global stage, pairing, fits, verdict) and of the setup
 (problem_from_features: the default model's fine-mesh correction).
 """
 from __future__ import annotations
@@ -34,8 +34,8 @@ import numpy as np  # noqa: E402
 from bench._machine import machine  # noqa: E402
 from engine.plate import PlateModel  # noqa: E402
 from engine.plate.convergence import reference_mesh  # noqa: E402
-from labid.identification import problem_from_features, run  # noqa: E402
-from labid.specimen import load_specimen, specimen_from_dict  # noqa: E402
+from labid.workflows.identification import problem_from_features, run  # noqa: E402
+from labid.inputs.specimen import load_specimen, specimen_from_dict  # noqa: E402
 
 CFRP = load_specimen("cfrp")
 WOOD = {"name": "wood-like spruce", "plate": {"length": 0.58, "width": 0.215},

@@ -26,7 +26,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench._machine import machine  # noqa: E402
-from labid.cli import main  # noqa: E402
+from labid.cli.main import main  # noqa: E402
 
 HERE = ROOT / "bench" / "import_real"
 BADIANE = Path("/work/research/modal/badiane/raw")

@@ -32,8 +32,8 @@ from engine.fit import Coords, Problem, check_start, estimate  # noqa: E402
 from engine.forward import modal_block, wave_block  # noqa: E402
 from engine.plate import PlateModel  # noqa: E402
 from engine.safe import group_velocity  # noqa: E402
-from labid.multistart import random_starts  # noqa: E402
-from labid.specimen import load_specimen  # noqa: E402
+from labid.workflows.identification.multistart import random_starts  # noqa: E402
+from labid.inputs.specimen import load_specimen  # noqa: E402
 
 GPA = 1e9
 TABLE2_STARTS = [(120, 50), (115, 45), (110, 50), (105, 55), (100, 40), (95, 55), (90, 50), (85, 35),

@@ -1,7 +1,7 @@
 """Wave measurement on simulated records as labs have them (issue 14): accuracy and cost.
 
 Cases (simulated rig, ``mock_hw.waves``: edge reflections, sensor response, crosstalk,
-noise, ADC), each through ``labid.analysis.wave_features``:
+noise, ADC), each through ``labid.workflows.analysis.wave_features``:
 
 1. the issue's pitch-catch setup (1 m x 1 m x 3 mm aluminium, 180 kHz 5-cycle burst from
    a PZT, sensors 120 and 420 mm away on the diagonal, 5 MHz, 4 shots), excitation recorded;
@@ -28,10 +28,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench._machine import machine  # noqa: E402
 from engine import safe, waves  # noqa: E402
-from labid.acquisition import AcquisitionSession  # noqa: E402
-from labid.analysis import AnalysisSettings, wave_features  # noqa: E402
-from labid.rig import read_rig_text, rig_from_text  # noqa: E402
-from labid.specimen import load_specimen, specimen_from_dict  # noqa: E402
+from labid.workflows.acquisition import AcquisitionSession  # noqa: E402
+from labid.workflows.analysis import AnalysisSettings, wave_features  # noqa: E402
+from labid.inputs.rig import read_rig_text, rig_from_text  # noqa: E402
+from labid.inputs.specimen import load_specimen, specimen_from_dict  # noqa: E402
 from mock_hw.rig import SimulatedDevice  # noqa: E402
 
 AL3 = {"name": "Al 1 m x 1 m x 3 mm", "plate": {"length": 1.0, "width": 1.0},

@@ -25,7 +25,7 @@ from bench._machine import machine  # noqa: E402
 
 from engine.laminate import Laminate, Material, Ply  # noqa: E402
 from engine.plate import DEFAULT_ELEMENTS, EDGE_LAYER, Mesh, PlateModel  # noqa: E402
-from labid.specimen import load_specimen  # noqa: E402
+from labid.inputs.specimen import load_specimen  # noqa: E402
 
 NAMES = ["E1", "E2", "nu12", "G12", "G13", "G23", "density"]
 

@@ -29,7 +29,7 @@ from bench._machine import machine  # noqa: E402
 
 from engine.plate import PlateModel  # noqa: E402
 from engine.plate.element import combo_scales, reference_matrices  # noqa: E402
-from labid.specimen import load_specimen  # noqa: E402
+from labid.inputs.specimen import load_specimen  # noqa: E402
 
 
 def timed(fn, repeat: int) -> tuple[float, float, float, object]:

@@ -45,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench._machine import machine  # noqa: E402
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger  # noqa: E402
 from engine import waves  # noqa: E402
-from labid.rig import rig_from_text  # noqa: E402
+from labid.inputs.rig import rig_from_text  # noqa: E402
 from labid.store import RunStore  # noqa: E402
 
 DATA = Path("/work/research/waves/vallenae_steel_plate")

@@ -27,7 +27,7 @@ from bench._machine import machine  # noqa: E402
 from engine import safe  # noqa: E402
 from engine.safe import dispersion, pencil_lead_break, safe_model, transient_response  # noqa: E402
 from engine.safe.labels import branch_table  # noqa: E402
-from labid.specimen import load_specimen  # noqa: E402
+from labid.inputs.specimen import load_specimen  # noqa: E402
 
 
 CPU = {}

@@ -2,7 +2,7 @@
 
     LABID_THREADS=1 .venv/bin/python bench/bench_speed.py FEATURES.json [--repeat 2] [--args "..."]
 
-Not a test: prints one line per run of ``python -m labid.cli identify FEATURES.json ARGS``
+Not a test: prints one line per run of ``python -m labid.cli.main identify FEATURES.json ARGS``
 (a child process: CPU = user + sys of the child, wall, peak RSS) and, from one run in this
 process, the number of plate eigen-solves (``PlateModel.solve``: all, and repeats of a
 parameter set already solved) and of SAFE group-velocity predictions, with their CPU.
@@ -35,7 +35,7 @@ def child_run(features: str, args: list[str], root: Path = ROOT) -> dict:
     env = {**os.environ, "PYTHONPATH": str(root), "LABID_THREADS": os.environ.get("LABID_THREADS", "1")}
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "labid.cli", "identify", features, "--quiet", *args], env=env,
+    subprocess.run([sys.executable, "-m", "labid.cli.main", "identify", features, "--quiet", *args], env=env,
                    check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -47,7 +47,7 @@ def counted_run(features: str, args: list[str]) -> dict:
     """One ``labid identify`` in this process, counting plate solves and SAFE predictions."""
     import engine.plate.model as pm
     import engine.forward.waves as fw
-    from labid import cli
+    from labid.cli import main as cli
 
     seen: collections.Counter = collections.Counter()
     stats = {"solves": 0, "repeats": 0, "solve_cpu": 0.0, "safe": 0, "safe_cpu": 0.0}

@@ -5,7 +5,7 @@ Each workload runs as its own process (the way users run it) in three settings:
 * ``default``  -- what the maths libraries do by themselves: one BLAS thread per core
   (``LABID_THREADS`` = cores, the same as no setting at all before labid owned its threads);
 * ``pinned``   -- ``OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1`` set by the user;
-* ``labid``    -- no variable at all: labid's own choice (``labid.threads``).
+* ``labid``    -- no variable at all: labid's own choice (``labid.base.threads``).
 
 and, with ``--busy``, again beside a CPU hog of this script's own (one spinning
 process per core). Wall and CPU (user + sys of the child) are reported with the
@@ -29,9 +29,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from bench._machine import machine  # noqa: E402
-from labid.threads import STANDARD_VARS  # noqa: E402
+from labid.base.threads import STANDARD_VARS  # noqa: E402
 
-LABID = [sys.executable, "-m", "labid.cli"]
+LABID = [sys.executable, "-m", "labid.cli.main"]
 
 
 def _env(setting: str) -> dict:

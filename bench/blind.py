@@ -39,8 +39,8 @@ from engine.gap import GapForward
 from engine.laminate import Laminate
 from engine.plate import Mesh, PlateModel
 from engine.safe import default_discretisation
-from labid.features import features_document
-from labid.specimen import specimen_from_dict
+from labid.inputs.features import features_document
+from labid.inputs.specimen import specimen_from_dict
 
 LIBRARY = tuple(EFFECTS)
 OUT_OF_LIBRARY = ("soft_patch", "lump_mass")

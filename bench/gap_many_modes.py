@@ -19,9 +19,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import bench.blind as blind  # noqa: E402
 from engine.gap import GapOptions  # noqa: E402
-from labid import progress  # noqa: E402
-from labid.diagnosis import run_diagnosis  # noqa: E402
-from labid.threads import configure  # noqa: E402
+from labid.base import progress  # noqa: E402
+from labid.workflows.diagnosis import run_diagnosis  # noqa: E402
+from labid.base.threads import configure  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from labid.cli import main  # noqa: E402
+from labid.cli.main import main  # noqa: E402
 
 #: peaks (Hz) picked by labid analyze from the authors' records (bench/RESULTS.md, issue 16)
 PEAKS = {

@@ -48,7 +48,7 @@ Overload. A channel is flagged if DAQmx lists it in ``overloaded_chans`` or
 if any sample reaches 99.9 % of its range (clipping at the ADC limit).
 
 TEDS. ``read_teds(physical, kind)`` reads a TEDS sensor's identity and sensitivity
-(``labid.io.calibration`` uses it on the NI backend; the calibration sheet wins).
+(``labid.inputs.calibration`` uses it on the NI backend; the calibration sheet wins).
 
 Errors. Every DAQmx failure becomes one line, an
 :class:`~drivers.protocol.AcquisitionError` subclass: :class:`DriverMissing`

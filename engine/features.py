@@ -1,7 +1,7 @@
 """The measured features of one plate: the one in-memory form of a features document.
 
 A features document (CONTRACT section 2; JSON <-> :class:`Features` in
-``labid.features``) holds natural frequencies (:class:`ModalData`),
+``labid.inputs.features``) holds natural frequencies (:class:`ModalData`),
 guided-wave group velocities per mode and direction (:class:`WaveData`) and
 the nominal rig geometry (:class:`RigLayout`). :class:`Features` adds the
 nominal specimen the engine needs to predict them: the laminate and the plate

@@ -4,7 +4,7 @@ Over 500 lines on purpose: it is the single facade every front-end imports (the 
 rule), in sections (run file, acquisition, analysis, identification, import/export); each
 function is a thin call into its workflow module.
 
-Front-ends (``labid.gui``, ``labid.cmd_*``, ``labid.report``, ``labid.demo``)
+Front-ends (``labid.gui``, ``labid.cli``, ``labid.report``)
 call these functions; they never open a ``RunStore`` or call ``engine``
 themselves (except ``labid dispersion`` and ``labid modes``, which touch no
 run file and must start fast). Each function opens the run file for as long
@@ -43,21 +43,22 @@ from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentE
 from engine import modal
 from mock_hw.rig import Effects
 
-from . import atomic
-from . import diagnosis as diag
-from . import identification as ident
-from .acquisition import AcquisitionSession, LiveSession
-from .budget import budget_of_problem
-from .analysis import Analysis, AnalysisSettings, analyze_store, modal_features, modal_table, store_analysis
+from .base import atomic
+from .workflows import diagnosis as diag
+from .workflows import identification as ident
+from .workflows.acquisition import AcquisitionSession, LiveSession
+from .workflows.budget import budget_of_problem
+from .workflows.analysis import (Analysis, AnalysisSettings, analyze_store, modal_features, modal_table,
+                                 store_analysis)
 from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
                       scalogram)
-from .errors import Cancelled, UserError
-from .damping import damping_summary
-from .features import features_text, specimen_of
-from .io import calibration as calib
+from .base.errors import Cancelled, UserError
+from .workflows.damping import damping_summary
+from .inputs.features import features_text, specimen_of
+from .inputs import calibration as calib
 from .io import exporters, importers
-from .rig import Rig, load_rig
-from .specimen import Specimen, load_specimen, specimen_from_dict
+from .inputs.rig import Rig, load_rig
+from .inputs.specimen import Specimen, load_specimen, specimen_from_dict
 from .store import KINDS, RunStore, WriterLock, decode_result
 
 __all__ = [
@@ -451,10 +452,10 @@ def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_d
                        start: Mapping[str, float] | None = None, method: str = "lm", n_starts: int = 0,
                        data: str | None = None, progress: Progress | None = None,
                        should_stop: ShouldStop | None = None, budget: bool = False) -> dict:
-    """Identify the constants from a features document (``labid.identification.run``).
+    """Identify the constants from a features document (``labid.workflows.identification.run``).
 
     ``budget``: add the GUM ``uncertainty_budget`` as ``labid identify`` does
-    (``labid.budget.budget_of_problem``; reported as ``("budget",)``); a budget that
+    (``labid.workflows.budget.budget_of_problem``; reported as ``("budget",)``); a budget that
     fails leaves ``uncertainty_budget_error`` and never loses the identification.
 
     With ``should_stop``/``progress`` (the panel) every model evaluation reports
@@ -500,7 +501,7 @@ def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_d
 def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>", options=None,
                   names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
                   estimate: Mapping | None = None) -> dict:
-    """The sim-to-real gap diagnosis of a features document (``labid.diagnosis``), from
+    """The sim-to-real gap diagnosis of a features document (``labid.workflows.diagnosis``), from
     identify's estimate of ``names`` (None: identify's default selection) from ``start``;
     ``estimate``: that identification's result dict when at hand (not recomputed)."""
     return diag.run_diagnosis(doc, base_dir, src, options, names=names, start=start, estimate=estimate)

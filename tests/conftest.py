@@ -5,7 +5,7 @@ import os
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-from labid import threads  # noqa: E402
+from labid.base import threads  # noqa: E402
 
 threads.configure()
 

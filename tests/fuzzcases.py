@@ -23,7 +23,7 @@ import h5py
 import numpy as np
 from hypothesis import strategies as st
 
-from labid import cli
+from labid.cli import main as cli
 
 # ------------------------------------------------------------------ TOML out (no writer library here)
 

@@ -80,7 +80,7 @@ class Estimate:
             "message": self.message,
             "history": list(self.history),
         }
-        if self.fit is not None:   # the verdict (labid.estimation.verdict): spread over the keys
+        if self.fit is not None:   # the verdict (labid.workflows.identification.estimation.verdict): spread over the keys
             fit = dict(self.fit)
             ident = self.identifiability["parameters"]
             for n, d in out["parameters"].items():

@@ -3,7 +3,7 @@
 ``labid identify`` corrects each predicted mode of its default-mesh plate model by the
 ratio f_fine / f_default from a ``FINE_FACTOR`` x finer mesh and adds the remaining error
 (Richardson, :func:`engine.plate.convergence.mode_corrections`) to the sigmas
-(:func:`engine.forward.identify.discretisation`, at the nominal constants). The gap test
+(:func:`engine.identify.stages.discretisation`, at the nominal constants). The gap test
 must use the same residuals (issue 13: on data identify fits consistently the verdict is
 ``none``), so the diagnosis takes the very same correction and error: per measured peak the
 ratio of the mode it is paired with, multiplied into every modal prediction (with or
@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..forward.identify import discretisation
+from ..identify.stages import discretisation
 
 __all__ = ["peak_corrections", "ModeCorrection"]
 

@@ -41,7 +41,7 @@ from scipy import stats
 from ..features import Features
 from ..forward import EFFECTS, ForwardModel
 from ..forward.effects import ANGLE_EFFECTS, PLATE_EFFECTS
-from ..forward.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
+from ..identify.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
 from .candidates import Candidate, applies, screen
 from .convergence import peak_corrections
 from .forward import GapForward
@@ -390,7 +390,7 @@ def diagnose(problem: Features, options: GapOptions | None = None,
              progress: Callable[[str, int, int], None] | None = None) -> GapResult:
     """Gap diagnosis of measured features at a start estimate (see module docstring).
 
-    ``start``: the estimate ``labid identify`` reports (``labid.diagnosis.start_estimate``);
+    ``start``: the estimate ``labid identify`` reports (``labid.workflows.diagnosis.start_estimate``);
     None: :func:`engine.gap.start.own_estimate` (identify's default estimator).
     ``forward`` replaces the default forward model of ``problem`` (e.g. another
     mesh; a :class:`~engine.gap.forward.GapForward` for the real-plate effects).

@@ -23,7 +23,7 @@ import numpy as np
 
 from ..forward import F_REF, temperature_params
 from ..forward.modal import extra_modes
-from ..forward.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
+from ..identify.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
 from ..forward.pairing import SPURIOUS, assign, miss_penalties, visibility
 from .forward import GapForward
 from .refit import Refit, RefitError, refit
@@ -37,7 +37,7 @@ __all__ = ["Pairing", "current_selection", "state", "tolerance", "most_likely", 
 #: re-pair / refit rounds per candidate at most
 MAX_ROUNDS = 3
 #: the pairing tolerance follows the refit's misfit (3 robust stds of the paired peaks'
-#: relative residual), in these bounds (identify's ``engine.forward.identify.TAU_RANGE``)
+#: relative residual), in these bounds (identify's ``engine.identify.stages.TAU_RANGE``)
 TAU_RANGE = (0.003, 0.05)
 
 

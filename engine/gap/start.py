@@ -3,7 +3,7 @@
 :class:`StartEstimate` carries what the identification decided (parameters
 and their values, prior, pairing, convergence) into :func:`engine.gap.diagnose`;
 the labid layer fills it from ``labid identify``'s estimator
-(``labid.diagnosis.start_estimate``), so the gap test judges the same fit.
+(``labid.workflows.diagnosis.start_estimate``), so the gap test judges the same fit.
 :func:`own_estimate` is the engine-only stand-in (callers without the labid
 layer, e.g. tests on a coarse mesh): the same estimator identify runs by
 default (``engine.fit.estimate``, maximum likelihood, log-parameters, from the

@@ -17,7 +17,7 @@ Modules (each readable alone):
 * :mod:`.paths` -- ray paths on a rectangular plate: direct and edge reflections (image sources).
 
 The whole measurement of a wave run (band, gates, wavelet choice, S0 separation,
-shots, independent points) is :mod:`engine.waves_pipeline`.
+shots, independent points) is :mod:`engine.wavefeatures.pipeline`.
 
 Public API (re-exported here): ``WaveError``, ``Wavelet``, ``PAPER_ALUMINIUM``,
 ``PAPER_CFRP``, ``cwt``, ``cwt_decimated``, ``white_noise_level``, ``Arrivals``,

@@ -17,7 +17,7 @@ from PySide6.QtWidgets import (QComboBox, QDoubleSpinBox, QFileDialog, QGridLayo
                                QPushButton, QSpinBox, QSplitter, QVBoxLayout, QWidget)
 
 from .. import services
-from ..errors import UserError
+from ..base.errors import UserError
 from .common import empty_note
 from .rigtext import set_device_values
 

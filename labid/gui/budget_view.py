@@ -3,7 +3,7 @@ identify`` prints it and the report shows it): a table with one row per source (
 type A, each type-B input of the specimen's ``[uncertainty]``) giving the standard
 uncertainty it contributes to each constant (its share of u_c² in the tooltip), then the
 combined u_c and the expanded U = k u_c (k = 2), one column per constant; values in the
-constant's prefix (``labid.summary.constant_cells``).
+constant's prefix (``labid.base.summary.constant_cells``).
 """
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import math
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QHeaderView, QLabel, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget
 
-from ..summary import constant_cells
+from ..base.summary import constant_cells
 
 
 def _num(v, default: float = math.nan) -> float:

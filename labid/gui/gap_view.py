@@ -11,7 +11,7 @@ from PySide6.QtWidgets import (QHBoxLayout, QHeaderView, QLabel, QPushButton, QT
                                QTableWidgetItem, QVBoxLayout, QWidget)
 
 from .. import services
-from ..summary import eng
+from ..base.summary import eng
 from .common import Banner, empty_note, plot
 
 

@@ -24,9 +24,9 @@ from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, 
 from pathlib import Path
 
 from .. import services
-from ..errors import Cancelled, UserError
-from ..estimation import default_params
-from ..summary import display_unit
+from ..base.errors import Cancelled, UserError
+from ..workflows.identification.estimation import default_params
+from ..base.summary import display_unit
 from .budget_view import BudgetView
 from .common import Banner, empty_note, plot
 

@@ -16,10 +16,10 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QPushButton, QTabWidget)
 
 from .. import services
-from ..errors import UserError
-from ..jsonio import to_jsonable
-from ..report import write_report
-from ..summary import next_step
+from ..base.errors import UserError
+from ..base.jsonio import to_jsonable
+from ..report.certificate import write_report
+from ..base.summary import next_step
 from .acquisition_view import AcquisitionView
 from .gap_view import GapView
 from .identification_view import IdentificationView
@@ -384,7 +384,7 @@ class MainWindow(QMainWindow):
 
 
 def show_analysis(main: MainWindow, an) -> None:
-    """Show a fresh ``labid.analysis.Analysis`` in the Modes and Waves tabs."""
+    """Show a fresh ``labid.workflows.analysis.Analysis`` in the Modes and Waves tabs."""
     main.modes.set_modal(an.spectrum, an.peaks) if an.spectrum is not None else main.modes.reload()
     main.waves.set_analysis(an)
 

@@ -12,9 +12,9 @@ from PySide6.QtWidgets import (QButtonGroup, QComboBox, QFileDialog, QFormLayout
                                QRadioButton, QSpinBox, QVBoxLayout, QWidget)
 
 from .. import services
-from ..errors import UserError
-from ..rig import Rig, rig_from_text
-from ..specimen import BUILTIN as SPECIMENS, Specimen, specimen_from_dict
+from ..base.errors import UserError
+from ..inputs.rig import Rig, rig_from_text
+from ..inputs.specimen import BUILTIN as SPECIMENS, Specimen, specimen_from_dict
 from .tomledit import TomlEditor
 
 OK_STYLE = "color: #006000;"

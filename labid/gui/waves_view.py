@@ -1,7 +1,7 @@
 """Waves tab: the scalogram of a wave shot with the picked arrival ridge, and the
 group velocity (with error bars) against the SAFE curve (nominal and identified).
 
-Arrivals and velocities are those of the analysis workflow (``labid.analysis``,
+Arrivals and velocities are those of the analysis workflow (``labid.workflows.analysis``,
 stored under ``/results/analysis``); the scalogram is ``services.scalogram``
 (the analysis' wavelet and band), the curves ``services.model_group_velocity``.
 """

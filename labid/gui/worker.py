@@ -1,7 +1,7 @@
 """Long work off the GUI thread: a ``Job`` runs ``fn(progress, should_stop)`` in a thread.
 
 The function reports through ``progress(obj)`` and polls ``should_stop()`` to end
-early after ``cancel()`` (raising ``labid.errors.Cancelled``). Errors a user can
+early after ``cancel()`` (raising ``labid.base.errors.Cancelled``). Errors a user can
 cause (``services.USER_ERRORS``: ``UserError``, ``AcquisitionError``, back-end
 ``ValueError`` subclasses) arrive as
 ``failed(one line)``; anything else as ``failed('internal error: ...')`` with
@@ -22,7 +22,7 @@ from typing import Any, Callable
 
 from PySide6.QtCore import QObject, QTimer, Signal
 
-from ..errors import Cancelled
+from ..base.errors import Cancelled
 from ..services import USER_ERRORS
 
 POLL_MS = 15

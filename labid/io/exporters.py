@@ -13,7 +13,7 @@ UFF (written by pyuff; SI units, data set 164 first):
   date and time, line 5 ``kind=<hammer|wave>``;
 - 55 modes (normal modes, analysis type 2): the picked peaks in frequency order, frequency
   (Hz), modal viscous damping ratio zeta and hysteretic loss factor eta = 2 zeta (the same
-  damping in its two conventions: do not add them; labid.damping), ID line 3 the mode's
+  damping in its two conventions: do not add them; labid.workflows.damping), ID line 3 the mode's
   family label ('(2,0)', 'unlabelled'; 'NONE' without labels), the mode shape
   (+Z, any scaling) at the accelerometer nodes where the analysis has one.
 
@@ -23,7 +23,7 @@ abscissa increment and the modal frequency to 6 digits (format E13.5).
 CSV tables (one header row, units in the column names or in a ``unit`` column):
 
 - ``features_modal.csv``: mode, frequency_hz, sigma_hz, damping_ratio, confidence, loss_factor
-  (eta = 2 zeta), family (the mode's (m, n) label, labid.damping);
+  (eta = 2 zeta), family (the mode's (m, n) label, labid.workflows.damping);
 - ``features_waves.csv``: mode, direction_deg, frequency_hz, group_velocity_m_s, sigma_m_s;
 - ``constants.csv``: result, parameter, value, std, unit, rel_std, identified, constrained_by
   (value and std in the unit: Pa, kg/m^3, 1);
@@ -44,10 +44,10 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ..analysis import AnalysisSettings, modal_features
-from ..damping import loss_factors
-from ..errors import UserError
-from ..rig import rig_from_text
+from ..workflows.analysis import AnalysisSettings, modal_features
+from ..workflows.damping import loss_factors
+from ..base.errors import UserError
+from ..inputs.rig import rig_from_text
 from ..store import RunStore, decode_result, software_version
 
 #: UFF58 specific data types (record 8-11, field 1)

@@ -36,14 +36,14 @@ import numpy as np
 
 from drivers.protocol import Record, Timing
 
-from ..acquisition import specimen_text
-from ..errors import UserError
-from ..rig import Rig, load_rig
-from ..specimen import Specimen, load_specimen
+from ..workflows.acquisition import specimen_text
+from ..base.errors import UserError
+from ..inputs.rig import Rig, load_rig
+from ..inputs.specimen import Specimen, load_specimen
 from ..store import RunStore
-from . import calibration as calib
+from ..inputs import calibration as calib
 from .readers import Column, read_columns, split_header
-from .units import QUANTITY, known_units, parse_unit, unit_matches
+from ..inputs.units import QUANTITY, known_units, parse_unit, unit_matches
 
 #: relative tolerance between a file's sampling rate and the rig's (files keep 6 digits or fewer)
 RATE_TOLERANCE = 1e-4

@@ -25,8 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
-from .units import parse_unit, time_factor
+from ..base.errors import UserError
+from ..inputs.units import parse_unit, time_factor
 
 FORMATS = {".tdms": "tdms", ".uff": "uff", ".unv": "uff", ".wav": "wav", ".mat": "mat",
            ".csv": "csv", ".txt": "csv"}

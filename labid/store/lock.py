@@ -20,7 +20,7 @@ import socket
 import threading
 from pathlib import Path
 
-from ..errors import UserError
+from ..base.errors import UserError
 
 _held: dict[str, list] = {}        # lock path -> [fd, count]
 _guard = threading.Lock()

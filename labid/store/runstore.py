@@ -57,8 +57,8 @@ import numpy as np
 
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
-from ..errors import UserError
-from ..jsonio import to_jsonable
+from ..base.errors import UserError
+from ..base.jsonio import to_jsonable
 from .h5repair import is_consistency_flag_error, repair
 from .lock import WriterLock
 from .readonly import open_read_only
@@ -314,7 +314,7 @@ class RunStore:
         """Create the table for one shot kind (before any shot: structure changes
         are not crash-safe, appends are). Idempotent when the layout matches.
         ``dtype``: of the sample tables, 'f8' or 'f4' (holds ADC samples of up to 23 bits
-        to better than half a step: ``labid.acquisition.sample_dtype``)."""
+        to better than half a step: ``labid.workflows.acquisition.sample_dtype``)."""
         if kind not in KINDS:
             raise ValueError(f"shot kind {kind!r}: expected one of {KINDS}")
         shots = self._f["shots"]

@@ -10,8 +10,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..atomic import fsync_dir
-from ..errors import UserError
+from ..base.atomic import fsync_dir
+from ..base.errors import UserError
 
 __all__ = ["decode_result", "json_default", "write_tree", "read_tree", "replace_group"]
 

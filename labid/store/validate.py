@@ -13,7 +13,7 @@ import h5py
 
 from drivers.protocol import ChannelConfig
 
-from ..errors import UserError
+from ..base.errors import UserError
 
 _CHANNEL_FIELDS = {f.name for f in fields(ChannelConfig)}
 _TABLES = ("timestamp", "overload", "backend", "software_version", "meta", "committed")

@@ -1,0 +1,414 @@
+"""The wave-feature method: group-velocity curves of a wave run from its records.
+
+The steps live in ``engine.wavefeatures.band`` (step 1), ``engine.wavefeatures.predict`` (the packets)
+and ``engine.wavefeatures.picks`` (steps 2-3); this module runs them (steps 4-8) and re-exports
+their public names.
+
+For each propagation direction of the wave sensors (``measure_waves``):
+
+1. band (``analysis_band``): ``band_hz``, else the source's band (a tone burst's -20 dB
+   band; for a pencil or a hammer the paper's fmax/20..fmax, fmax = 50 kHz isotropic,
+   200 kHz laminate, stopped where a recorded hammer force falls 10 dB) intersected
+   with the -20 dB band of the direct packets in the far sensor's record; an empty
+   intersection is an empty result that says why and which option to change;
+2. path: source to sensor when the source is recorded (its scalogram gives the source
+   time per frequency), else between the nearest and the farthest sensor of the
+   direction (differential delays only: the source time is unknown when the record is
+   triggered on a sensor), else (one sensor) from the trigger time;
+3. packets (``engine.wavefeatures.predict``): every mode's direct path and edge reflections,
+   with the SAFE group velocities of the nominal specimen; a pick is a scalogram
+   maximum inside the target's predicted window (nominal velocity +- ``gate_margin``)
+   that lies nearer the target's prediction than any foreign packet's; the frequency is
+   dropped (and counted) where foreign packets (another mode, any reflection, the
+   excitation's crosstalk) reach ``leak_db`` of the pick's level at its time, or could
+   shift it by more than ``max_bias`` of the travel time (a first-order bound, which
+   otherwise joins the pick's sigma); with the source time unknown the window also spans
+   its possible range;
+4. checks: every velocity is compared with the predicted direct-path velocities of all
+   modes; nearer another mode's: relabelled (if that mode has no point there) or
+   rejected; farther than ``gate_margin`` from every mode: rejected;
+5. refinement: the predictions are rescaled by what stage 1 measured (a smooth ratio
+   per mode, its scatter as the new margin; the source time fitted when unknown) and
+   the picks are redone (stage 2);
+6. wavelet: ``wavelet``, else the one of a few candidates (the paper's for the
+   material, a tone burst's band resolution, cmor2-2, cmor2-1, cmor1-1, cmor0.5-1) that
+   yields the most independent points; S0 and A0 use the same one;
+7. shots: per shot a curve; across shots the mean, with the scatter-based sigma (not
+   below the per-shot noise sigma over sqrt(n)) and the wavelet-bias term of a
+   centre-frequency sweep (docs/wavelet-bias.md) in quadrature;
+8. the features keep only points a wavelet resolution apart (``independent_points``).
+
+Pure: arrays and small frozen dataclasses in, a ``WaveResult`` out (its notes and the
+per-curve ``dropped`` counts included); no files, no run store. Units: s, Hz, m, m/s.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .. import waves
+from .band import Band, analysis_band, default_wavelet, signal_band, snr_band
+from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of,
+                    locate_onset, noise_rms, nominal_cg, sensor_delay)
+
+__all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet",
+           "analysis_band", "echo_path", "noise_rms", "combine_shots", "measure_waves", "sensor_delay",
+           "signal_band", "snr_band"]
+
+
+@dataclass(frozen=True)
+class WaveCurve:
+    """One measured curve of the features: its independent points (Hz, m/s, m/s) and
+    why the other frequencies of the band were dropped ({reason: count})."""
+
+    mode: str
+    direction_deg: float
+    frequency_hz: np.ndarray
+    group_velocity_m_s: np.ndarray
+    sigma_m_s: np.ndarray
+    dropped: Mapping[str, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class WaveResult:
+    """What ``measure_waves`` found.
+
+    features: the curves for the features document, in order. curves / arrivals: every
+    measured curve on the full grid and the first shot's far-sensor arrivals, by key
+    '<mode>_<direction>' (e.g. 'A0_0'). wave_path_m / sensor_length_m: path and sensor
+    length of the first direction (None without one). dropped: per key, why frequencies
+    were dropped ({reason: count}). notes: what was done, in order.
+    """
+
+    features: tuple[WaveCurve, ...]
+    curves: Mapping[str, waves.GroupVelocity]
+    arrivals: Mapping[str, waves.Arrivals]
+    wave_path_m: float | None
+    sensor_length_m: float | None
+    notes: tuple[str, ...]
+    dropped: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
+
+
+def echo_path(src: tuple[float, float], dst: tuple[float, float], length: float, width: float) -> float:
+    """Shortest source -> edge -> sensor path on a length x width plate (mirror images), m."""
+    return min(p.length_m for p in waves.ray_paths(src, dst, length, width, 1) if p.order == 1)
+
+
+def combine_shots(curves: list[waves.GroupVelocity], floor: np.ndarray | None = None) -> waves.GroupVelocity:
+    """Mean over shots; sigma: the scatter over shots / sqrt(n), not below the mean
+    per-shot sigma / sqrt(n) (a single shot: its own sigma), with ``floor`` (a bias
+    term, m/s) added in quadrature."""
+    f = curves[0].frequencies_hz
+    V = np.array([c.velocity_m_s for c in curves])
+    S = np.array([c.sigma_m_s for c in curves])
+    ok = np.isfinite(V) & np.isfinite(S) & (S > 0)
+    n = ok.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        v = np.where(n > 0, np.where(ok, V, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
+        scatter = np.sqrt(np.where(ok, (V - v) ** 2, 0.0).sum(axis=0) / np.maximum(n - 1, 1))
+        noise = np.where(ok, S, 0.0).sum(axis=0) / np.maximum(n, 1)
+        s = np.where(n > 1, np.maximum(scatter, noise), noise) / np.sqrt(np.maximum(n, 1))
+    if floor is not None:
+        s = np.hypot(s, np.where(np.isfinite(floor), floor, 0.0))
+    valid = n > 0
+    return waves.GroupVelocity(f, np.where(valid, v, np.nan), np.where(valid, s, np.nan), valid)
+
+
+def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.ndarray],
+              cache: dict) -> tuple[waves.GroupVelocity, dict]:
+    """One shot's curve of ``mode`` and its arrivals {'far', 'near', 'source'}."""
+    far, near = d.pair(mode)
+    force = d.setup.force_channel
+    assign = d.settings.assign
+
+    def W(ch):
+        if (ch, wl) not in cache:
+            cache[(ch, wl)] = waves.cwt(rec[ch], d.setup.fs_hz, d.freqs, wl)
+        return cache[(ch, wl)]
+
+    src = None
+    if force is not None:
+        if ("src", force, wl) not in cache:
+            cache[("src", force, wl)] = arrivals_of(d, rec[force], None, mode, wl, None, W(force))
+        src = cache[("src", force, wl)]
+    out = {"source": src}
+    path = far.distance_m - (near.distance_m if near is not None else 0.0)
+    a_far = arrivals_of(d, rec[far.channel], far, mode, wl, src, W(far.channel), path)
+    # the curvature correction needs a dispersive mode: fitted to S0's nearly constant
+    # delays its tau'' is noise (docs/wavelet-bias.md); S0 is reassigned only
+    correct = d.settings.assign == "instantaneous" and mode == "A0"
+    if correct:
+        a_far = waves.correct_dispersion_bias(a_far)
+    out["far"] = a_far
+    if src is not None:
+        g = waves.group_velocity(a_far, far.distance_m, src, assign=assign)
+    elif near is not None:
+        a_near = arrivals_of(d, rec[near.channel], near, mode, wl, None, W(near.channel), path)
+        if correct:
+            a_near = waves.correct_dispersion_bias(a_near)
+        out["near"] = a_near
+        g = waves.group_velocity(a_far, far.distance_m, a_near, near_distance_m=near.distance_m, assign=assign)
+    else:
+        g = waves.group_velocity(a_far, far.distance_m, source_time_s=0.0, assign=assign)
+    return g, out
+
+
+def _check_modes(d: Direction, curves: dict[str, waves.GroupVelocity], counts: dict) -> dict:
+    """Relabel or reject every point nearer another mode's prediction (module step 4)."""
+    nominal = {m: nominal_cg(d, m) * (d.scale[m] if m in d.scale else 1.0) for m in ("A0", "S0", "SH0")}
+    nominal = {m: v for m, v in nominal.items() if np.isfinite(v).any()}
+    out = {m: (g.velocity_m_s.copy(), g.sigma_m_s.copy(), g.valid.copy()) for m, g in curves.items()}
+    for m, g in curves.items():
+        for i in np.flatnonzero(g.valid):
+            v = g.velocity_m_s[i]
+            dev = {k: abs(v / c[i] - 1) for k, c in nominal.items() if np.isfinite(c[i])}
+            best = min(dev, key=dev.get)
+            if best == m and dev[best] <= d.margin.get(m, d.settings.gate_margin) * 1.5:
+                continue
+            vm, sm, ok = out[m]
+            ok[i] = False
+            if best != m and best in out and not out[best][2][i] and \
+                    dev[best] <= d.margin.get(best, d.settings.gate_margin) * 1.5:
+                vb, sb, okb = out[best]
+                vb[i], sb[i], okb[i] = v, g.sigma_m_s[i], True
+                counts[m]["relabelled"] = counts[m].get("relabelled", 0) + 1
+            else:
+                counts[m]["rejected by the mode check"] = counts[m].get("rejected by the mode check", 0) + 1
+            vm[i] = sm[i] = np.nan
+    return {m: waves.GroupVelocity(d.freqs, v, s, ok) for m, (v, s, ok) in out.items()}
+
+
+def _reasons(arrs: dict, valid: np.ndarray) -> dict[str, int]:
+    """Why the frequencies not in ``valid`` were dropped (far sensor first, then near)."""
+    why: dict[str, int] = {}
+    for i in np.flatnonzero(~valid):
+        r = ""
+        for key in ("far", "near", "source"):
+            a = arrs.get(key)
+            if a is not None and a.reason[i]:
+                r = a.reason[i]
+                break
+        k = _category(r)
+        why[k] = why.get(k, 0) + 1
+    return why
+
+
+def _category(r: str) -> str:
+    if r.startswith("overlap"):
+        return r
+    if r.startswith("SNR") or r.startswith("energy"):
+        return "weak"
+    if not r:
+        return "outside the reassigned frequencies"
+    return r.split(":")[0].split(" (")[0]
+
+
+def _shot_curves(d: Direction, wl: waves.Wavelet, shots, first_only: bool = False):
+    """Per shot {mode: GroupVelocity} after the mode check, the first shot's arrivals and
+    the drop counts {mode: {reason: n}} of the first shot."""
+    per_shot, first_arrs, counts = [], None, None
+    for j, rec in enumerate(shots[:1] if first_only else shots):
+        cache: dict = {}
+        cur, arrs = {}, {}
+        locate_onset(d, wl, rec, cache)
+        for m in MODES:
+            if d.pair(m)[0] is None:
+                continue
+            cur[m], arrs[m] = _velocity(d, m, wl, rec, cache)
+        cnt = {m: {} for m in cur}
+        before = {m: g.valid for m, g in cur.items()}
+        cur = _check_modes(d, cur, cnt)
+        if j == 0:
+            first_arrs = arrs
+            # frequencies the pickers dropped (the mode check counts its own)
+            counts = {m: {**_reasons(arrs[m], before[m] | cur[m].valid), **cnt[m]} for m in cur}
+        per_shot.append(cur)
+    return per_shot, first_arrs, counts
+
+
+def _refine(d: Direction, per_shot: list[dict]) -> None:
+    """Stage 2 predictions: per mode the smooth ratio measured / nominal and its scatter;
+    the source onset when it was unknown."""
+    for m in MODES:
+        nom = nominal_cg(d, m)
+        r = np.array([s[m].velocity_m_s / nom for s in per_shot if m in s])
+        if r.size == 0 or not np.isfinite(r).any():
+            continue
+        has = np.isfinite(r).any(axis=0)
+        rm = np.full(d.freqs.size, np.nan)
+        rm[has] = np.nanmedian(r[:, has], axis=0)
+        ok = np.isfinite(rm)
+        if ok.sum() < 3:
+            continue
+        f = d.freqs
+        deg = 1 if ok.sum() >= 8 else 0
+        c = np.polynomial.polynomial.polyfit(f[ok] / f.max(), rm[ok], deg)
+        fit = np.polynomial.polynomial.polyval(f / f.max(), c)
+        res = rm[ok] - fit[ok]
+        spread = 1.4826 * np.median(np.abs(res - np.median(res))) if res.size >= 3 else 0.0
+        d.scale[m] = fit
+        d.margin[m] = float(min(max(4 * spread, 0.015), d.settings.gate_margin))
+
+
+def _independent(freqs, g: waves.GroupVelocity, wl: waves.Wavelet) -> np.ndarray:
+    return waves.independent_points(freqs, g.valid, wl)
+
+
+def _measure(d: Direction, wl: waves.Wavelet, shots, first_only: bool = False):
+    """Two-stage measurement with one wavelet: (per-shot curves, first arrivals, counts)."""
+    d.scale, d.margin = {}, {}
+    t0 = d.t0
+    # stage 1: picks by the nominal predictions (wide margins: overlaps not judged), only
+    # to rescale the predictions; stage 2: the measurement
+    d.strict = False
+    per_shot, first_arrs, counts = _shot_curves(d, wl, shots, first_only=True)
+    d.strict = True
+    _refine(d, per_shot)
+    out = _shot_curves(d, wl, shots, first_only=first_only)
+    d.t0 = t0
+    return out
+
+
+def _wavelet_candidates(d: Direction, settings: WaveSettings) -> list[waves.Wavelet]:
+    if settings.wavelet:
+        return [waves.Wavelet(*settings.wavelet)]
+    f = d.freqs
+    cands = [default_wavelet(d.setup.laminate)]
+    if f.size > 1 and f[-1] > f[0]:
+        # the centre C giving ~5 independent points over the band (spacing f / (pi C) at B = 2)
+        c_band = round(min(max(4 * float(np.mean(f)) / (math.pi * (f[-1] - f[0])), 1.0), 5.0) * 2) / 2
+        cands.append(waves.Wavelet(2.0, c_band))
+    cands += [waves.Wavelet(2.0, 2.0), waves.Wavelet(2.0, 1.5), waves.PAPER_ALUMINIUM, waves.Wavelet(1.0, 1.0),
+              waves.Wavelet(0.5, 1.0)]
+    out = []
+    for c in cands:
+        if c not in out:
+            out.append(c)
+    return out
+
+
+def _choose_wavelet(d: Direction, settings: WaveSettings, shots) -> tuple[waves.Wavelet, list[str]]:
+    """The candidate with the most independent points over A0 and S0 (first shot)."""
+    cands = _wavelet_candidates(d, settings)
+    if len(cands) == 1:
+        return cands[0], []
+    score = {}
+    for wl in cands:
+        per_shot, _, _ = _measure(d, wl, shots, first_only=True)
+        cur = per_shot[0]
+        n_ind = sum(int(_independent(d.freqs, g, wl).sum()) for g in cur.values())
+        n_modes = sum(int(g.valid.sum()) >= d.settings.min_points for g in cur.values())
+        score[wl] = (n_modes, n_ind)
+    # the most modes measured, then the most independent points; on a tie the earlier
+    # (longer, less biased) candidate
+    best = max(cands, key=lambda c: (score[c], -cands.index(c)))
+    note = (f"direction {d.direction:g} deg: wavelet {best.name}, the most modes and independent points "
+            "of " + ", ".join(f"{c.name} {score[c][0]}/{score[c][1]}" for c in cands))
+    return best, [note]
+
+
+def _sweep_term(d: Direction, wl: waves.Wavelet, shots, combined: dict) -> dict:
+    """Half the difference to a centre-frequency sweep (C / 1.5, or x 1.5 below C = 2/3)."""
+    c_alt = wl.center / 1.5 if wl.center / 1.5 >= 2 / 3 else wl.center * 1.5
+    alt_wl = waves.Wavelet(wl.bandwidth, c_alt)
+    per_shot, _, _ = _measure(d, alt_wl, shots)
+    out = {}
+    for m, g in combined.items():
+        alt = combine_shots([s[m] for s in per_shot if m in s])
+        both = g.valid & alt.valid
+        out[m] = np.where(both, 0.5 * np.abs(g.velocity_m_s - alt.velocity_m_s), 0.0)
+    return out
+
+
+def _pairs(sensors: Sequence[Sensor], shots) -> tuple[list[Sensor], list[dict], list[str]]:
+    """Top/bottom sensor pairs at one position become their sum (S modes) and difference
+    (A modes) records."""
+    out, used, notes = [], set(), []
+    recs = [dict(r) for r in shots]
+    for a in sensors:
+        if a.channel in used:
+            continue
+        b = next((o for o in sensors if o is not a and o.channel not in used and o.face != a.face
+                  and abs(o.distance_m - a.distance_m) < 1e-3 and abs(o.direction_deg - a.direction_deg) < 0.5),
+                 None)
+        if b is None:
+            out.append(a)
+            continue
+        top, bot = (a, b) if a.face == "top" else (b, a)
+        used |= {a.channel, b.channel}
+        for r in recs:
+            r[f"{top.channel}+{bot.channel}"] = 0.5 * (r[top.channel] + r[bot.channel])
+            r[f"{top.channel}-{bot.channel}"] = 0.5 * (r[top.channel] - r[bot.channel])
+        out.append(replace(top, channel=f"{top.channel}+{bot.channel}", families="S"))
+        out.append(replace(top, channel=f"{top.channel}-{bot.channel}", families="A"))
+        notes.append(f"{top.channel} (top) and {bot.channel} (bottom): S modes from their sum, "
+                     "A modes from their difference")
+    return out, recs, notes
+
+
+def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], freqs: np.ndarray,
+                  settings: WaveSettings = WaveSettings()) -> WaveResult:
+    """Group-velocity curves of every direction from the shots' records.
+
+    ``shots``: per shot, channel name -> record in physical units (every sensor of
+    ``setup`` and the source channel); ``freqs``: the analysis grid (``analysis_band``).
+    """
+    notes: list[str] = []
+    sensors, shots, pair_notes = _pairs(setup.sensors, shots)
+    notes += pair_notes
+    fam = setup.source.families
+    if fam != frozenset("SA") and fam != frozenset("AS"):
+        sensors = [replace(s, families="".join(sorted(set(s.families) & fam))) for s in sensors]
+        notes.append(f"collocated actuator pair: {'S' if 'S' in fam else 'A'} modes only")
+    by_dir: dict[float, list] = {}
+    for ws in sensors:
+        by_dir.setdefault(round(ws.direction_deg, 6), []).append(ws)
+    out, curves, arrivals, dropped = [], {}, {}, {}
+    path_m = length_m = None
+    for direction, wss in sorted(by_dir.items()):
+        if setup.force_channel is None and len({s.distance_m for s in wss}) < 2:
+            notes.append(f"direction {direction:g} deg: one sensor and no source record; "
+                         "velocity from the trigger time (source assumed at t = 0)")
+        d = direction_of(setup, settings, freqs, direction, wss)
+        n_rec = len(next(iter(shots[0].values())))
+        d.record_s = (n_rec - setup.pretrigger) / setup.fs_hz - (d.t0_prior[0] if d.t0_prior else 0.0)
+        wl, wl_notes = _choose_wavelet(d, settings, shots)
+        notes.extend(wl_notes)
+        per_shot, first_arrs, counts = _measure(d, wl, shots)
+        combined = {m: combine_shots([s[m] for s in per_shot if m in s]) for m in per_shot[0]}
+        floor = _sweep_term(d, wl, shots, combined)
+        combined = {m: combine_shots([s[m] for s in per_shot if m in s], floor[m]) for m in combined}
+        for mode, gv in combined.items():
+            key = f"{mode}_{direction:g}"
+            far, near = d.pair(mode)
+            dropped[key] = counts[mode]
+            why = ", ".join(f"{k} x{n}" for k, n in sorted(counts[mode].items(), key=lambda t: -t[1])[:4])
+            if gv.valid.sum() < settings.min_points:
+                notes.append(f"{mode} along {direction:g} deg: {int(gv.valid.sum())} valid frequencies "
+                             f"(< {settings.min_points}); not reported (dropped: {why or 'none'})")
+                continue
+            curves[key] = gv
+            arrivals[key] = first_arrs[mode]["far"]
+            ok = gv.valid
+            if mode == "S0" and not settings.report_s0:
+                notes.append(f"S0 along {direction:g} deg: {int(ok.sum())} frequencies measured and stored "
+                             "in the run (analysis/waves), not put in the features")
+                continue
+            # the features carry only points a wavelet resolution apart: neighbours on the
+            # dense grid share their errors (the full curve stays in the run file)
+            ok = waves.independent_points(freqs, ok, wl)
+            out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
+                                 dict(counts[mode])))
+            how = "source to sensor" if far is not None and near is None and setup.force_channel is not None \
+                else ("two sensors" if near is not None else "from the trigger time")
+            notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} independent frequencies "
+                         f"{freqs[ok].min() / 1e3:.3g}-{freqs[ok].max() / 1e3:.3g} kHz from {len(shots)} shot(s), "
+                         f"{wl.name}, {how}; dropped: {why or 'none'}")
+        if path_m is None:
+            far, near = d.pair("A0") if d.pair("A0")[0] is not None else d.pair("S0")
+            path_m = far.distance_m - (near.distance_m if near is not None else 0.0)
+            length_m = far.length_m
+    return WaveResult(tuple(out), curves, arrivals, path_m, length_m, tuple(notes), dropped)

@@ -1,0 +1,4 @@
+"""``python -m labid.cli COMMAND ...``."""
+from .main import main
+
+raise SystemExit(main())

@@ -1,0 +1,97 @@
+"""``labid analyze``: peak picking and CWT group velocities from the raw records of a run.
+
+Writes the features file (CONTRACT section 2; default ``RUN.features.json``
+next to the run; ``analysis.run`` is the run file relative to it) and stores
+features, picks and curves in the run file (``/results/analysis``). The
+``--json`` result is the features document.
+"""
+from __future__ import annotations
+
+import re
+
+from ..base import progress
+from .. import services
+from ..workflows.analysis import AnalysisSettings
+from .options import add_json_option
+from ..base.errors import UserError
+from ..base.summary import modes_table, stream
+
+_PAIR = re.compile(r"^\s*([0-9.eE+-]+)\s*[,:-]\s*([0-9.eE+-]+)\s*$")
+
+
+def register(sub) -> None:
+    p = sub.add_parser("analyze", help="resonance peaks and CWT group velocities of a run -> features",
+                       description=__doc__.splitlines()[0])
+    p.add_argument("run", metavar="RUN.h5", help="run file written by labid acquire")
+    p.add_argument("--out", default=None, metavar="FEATURES.json",
+                   help="features file to write (default: RUN.features.json beside the run)")
+    p.add_argument("--modal-fmax", type=float, default=None, metavar="HZ",
+                   help="top of the resonance search band (default 0.4 x sample rate)")
+    p.add_argument("--exp-window", type=float, default=None, metavar="TAU_S",
+                   help="exponential window time constant on the hammer records (damping corrected)")
+    p.add_argument("--wavelet", default=None, metavar="B,C",
+                   help="complex Morlet bandwidth and centre (default: 2,1 isotropic; 2,5 laminate)")
+    p.add_argument("--wave-band", default=None, metavar="FMIN,FMAX",
+                   help="CWT frequency band in Hz (default fmax/20..fmax, fmax 50 kHz / 200 kHz)")
+    p.add_argument("--nominal", action="store_true",
+                   help="assign arrivals to the nominal wavelet frequency, as in the paper "
+                        "(default: reassigned and bias-corrected, docs/wavelet-bias.md)")
+    p.add_argument("--with-s0", action="store_true",
+                   help="(default now) S0 group velocities go into the features whenever measured")
+    p.add_argument("--without-s0", action="store_true",
+                   help="keep the S0 group velocities out of the features (always stored in the run)")
+    add_json_option(p)
+    p.set_defaults(func=run)
+
+
+def _pair(text: str, key: str) -> tuple[float, float]:
+    m = _PAIR.match(text)
+    try:
+        a, b = (float(m.group(1)), float(m.group(2))) if m else (None, None)
+    except ValueError:
+        a = b = None
+    if a is None or not (a > 0 and b > 0):
+        raise UserError(f"value {text!r}: expected two positive numbers 'A,B'", key=key)
+    return a, b
+
+
+def run(args) -> dict:
+    if args.modal_fmax is not None and not args.modal_fmax > 0:
+        raise UserError(f"value {args.modal_fmax!r}: expected a positive frequency in Hz", key="--modal-fmax")
+    if args.exp_window is not None and not args.exp_window > 0:
+        raise UserError(f"value {args.exp_window!r}: expected a positive time constant in s", key="--exp-window")
+    band = _pair(args.wave_band, "--wave-band") if args.wave_band else None
+    if band and not band[0] < band[1]:
+        raise UserError(f"value {args.wave_band!r}: expected FMIN < FMAX", key="--wave-band")
+    settings = AnalysisSettings(
+        modal_fmax_hz=args.modal_fmax, exp_tau_s=args.exp_window,
+        wavelet=_pair(args.wavelet, "--wavelet") if args.wavelet else None,
+        wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous",
+        report_s0=not args.without_s0)
+    out_path = args.out or str(services.features_path(args.run))
+    if progress.enabled():      # a terminal: say what the next seconds are for
+        progress.note(f"labid analyze: {args.run}: resonance peaks and CWT group velocities")
+    feats = services.run_analysis(args.run, settings, out=args.out).features
+    w = stream(args)
+    if w is not None:
+        m = feats.get("modal") or {}
+        fr = m.get("frequencies_hz", [])
+        waves = feats.get("waves", []) or []
+        waves = [waves] if isinstance(waves, dict) else waves
+        n_w = sum(len(x.get("frequency_hz", [])) for x in waves)
+        if fr:
+            w.write(modes_table(fr, sigma_hz=m.get("sigma_hz")))
+        for x in waves:
+            f = x["frequency_hz"]
+            dropped = ", ".join(f"{k} x{n}" for k, n in sorted(x.get("dropped", {}).items(), key=lambda t: -t[1]))
+            w.write(f"{x['mode']} {x['direction_deg']:g} deg: {len(f)} velocities, "
+                    f"{f[0] / 1e3:.3g}-{f[-1] / 1e3:.3g} kHz" + (f"; dropped: {dropped}" if dropped else "") + "\n")
+        for note in feats.get("analysis", {}).get("notes", []):
+            if note.startswith("no velocity") or "not reported" in note:
+                w.write("dropped: " + note + "\n")
+        if args.without_s0:
+            w.write("S0: kept out of the features (--without-s0); stored in the run file only\n")
+        w.write(f"features: {out_path} ({len(fr)} resonances, {n_w} group-velocity points)\n")
+        w.write(f"stored in: {args.run} (/results/analysis)\n")
+        w.write("next: labid identify " + out_path + "\n")
+    return feats

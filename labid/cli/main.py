@@ -1,0 +1,231 @@
+"""The headless command line: ``labid COMMAND ...`` (CONTRACT section 3).
+
+Exit codes: 0 success, 2 user error (one line on stderr, no traceback),
+1 internal failure, 3 a fit inconsistent with its data under ``--strict``,
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM, handled like Ctrl-C).
+Every failure is mapped here (``failure_line``): a ``UserError``, a storage error
+(disk full, read-only directory, permissions), an engine error on unphysical input
+or an out-of-memory request is one line, exit 2; anything else is an internal
+failure: exit 1, the traceback written to a file and one line saying where
+(``LABID_DEBUG=1`` prints it too). Each command lives in ``labid/cli/<name>.py`` (``import_.py``
+for ``labid import``) and exposes
+``register(subparsers)``, which adds its parser and sets ``func(args) -> dict``.
+The returned dict is the ``--json`` result.
+
+Fast start: only the module of the command being run is imported (with its
+numerical libraries); ``labid --help`` lists the commands from the static
+``COMMANDS`` table and imports none of them (``bench/bench_cli.py``).
+"""
+from __future__ import annotations
+
+import argparse
+import errno
+import importlib
+import keyword
+import os
+import signal
+import sys
+import tempfile
+import time
+import traceback
+
+from ..base import progress, threads
+from .options import write_json
+from ..base.errors import UserError
+
+#: every command with its one-line help, in the order ``labid --help`` lists them
+#: (each module's ``register`` uses the same line; tests/test_cli.py checks it)
+COMMANDS: dict[str, str] = {
+    "dispersion": "guided-wave dispersion curves (SAFE)",
+    "modes": "free-free natural frequencies of the plate",
+    "acquire": "headless acquisition session (appends to RUN.h5)",
+    "import": "recordings of other systems (TDMS, UFF58, WAV, MAT, CSV) into a run file",
+    "analyze": "resonance peaks and CWT group velocities of a run -> features",
+    "identify": "identify elastic constants from a features file",
+    "diagnose": "sim-to-real gap diagnosis of a features file",
+    "demo": "the whole job end to end on the simulated rig",
+    "report": "self-contained HTML report of a run",
+    "export": "a run's FRFs, time data and modes as UFF, its results as CSV tables",
+    "gui": "the lab panel",
+}
+ALL = "*"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 2
+        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        raise SystemExit(2)
+
+
+def command_module(name: str):
+    """The module of command ``name``, imported now (the CLI's lazy loading of commands)."""
+    return importlib.import_module(f"labid.cli.{name}_" if keyword.iskeyword(name) else f"labid.cli.{name}")
+
+
+def build_parser(load: str | None = ALL) -> argparse.ArgumentParser:
+    """The ``labid`` parser. ``load``: the command whose module is imported to add its
+    full parser (``ALL``: every command; None: none); the others are listed by name
+    and help line only."""
+    parser = _Parser(prog="labid", description="Elastic constants of composite plates from "
+                     "vibration and guided waves, without cutting them.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    for name, help_line in COMMANDS.items():
+        if load in (ALL, name):
+            command_module(name).register(sub)
+        else:
+            sub.add_parser(name, help=help_line, add_help=False)
+    for p in sub.choices.values():
+        p.add_argument("--threads", type=int, default=None, metavar="N",
+                       help="BLAS/OpenMP threads per process (default 1, or $LABID_THREADS; "
+                            "OMP_NUM_THREADS and the like set by you are respected)")
+        p.add_argument("--quiet", "-q", action="store_true",
+                       help="no progress on stderr (the summary on stdout stays)")
+    return parser
+
+
+#: OSError numbers that are the user's environment, not a bug: one line, exit 2
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM,
+                            errno.ENOENT, errno.EISDIR, errno.ENOTDIR, errno.ENAMETOOLONG, errno.EFBIG,
+                            errno.EIO, errno.EEXIST, errno.ENXIO, errno.ELOOP, errno.EBUSY, errno.ETXTBSY})
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C (the command unwinds, files are closed)."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001 - signal handler signature
+    raise Terminated()
+
+
+def failure_line(e: BaseException) -> str | None:
+    """The one user-facing line of an exception that is the user's to fix, else None."""
+    if isinstance(e, UserError):
+        return str(e)
+    if isinstance(e, OSError) and e.errno in STORAGE_ERRNOS:
+        where = e.filename if e.filename is not None else ""
+        return f"{where}: {e.strerror or e}" if where else f"{e.strerror or e}"
+    if isinstance(e, MemoryError):
+        return "not enough memory for this input (MemoryError); expected a smaller problem"
+    if isinstance(e, ValueError) and type(e).__module__.startswith("engine."):
+        msg = str(e).splitlines()[0] if str(e) else type(e).__name__
+        return f"{msg} ({type(e).__name__}: the input is outside what the model can hold)"
+    return None
+
+
+def crash_report(command: str, exc: BaseException) -> str | None:
+    """Write the traceback of an internal failure to a file; its path (None if unwritable)."""
+    text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+    if os.environ.get("LABID_DEBUG"):
+        sys.stderr.write(text)
+    name = f"labid-crash-{command}-{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.txt"
+    for d in (os.environ.get("LABID_CRASH_DIR"), tempfile.gettempdir()):
+        if not d:
+            continue
+        try:
+            path = os.path.join(d, name)
+            with open(path, "w", encoding="utf-8") as fh:
+                fh.write(f"labid {command}: internal error\nargv: {sys.argv!r}\n\n{text}")
+            return path
+        except OSError:
+            continue
+    if not os.environ.get("LABID_DEBUG"):
+        sys.stderr.write(text)
+    return None
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = argv[0] if argv and argv[0] in COMMANDS else "?"
+    # a usage error is one line and SystemExit(2), --help SystemExit(0) (argparse's way)
+    args = build_parser(command if command != "?" else None).parse_args(argv)
+    previous = None
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:                              # not the main thread: leave signals alone
+        previous = None
+    try:
+        return _run(args)
+    except Terminated:                              # arrived outside the command's own handling
+        return 143
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+class _PipeSafe:
+    """stdout that survives a reader leaving (``labid identify ... | head``): on a broken
+    pipe further console text is dropped (the descriptor now points at the null device),
+    while the command goes on and writes its results (``--json``, the run file)."""
+
+    def __init__(self, stream):
+        self._stream, self.broken = stream, False
+
+    def write(self, text: str) -> int:
+        if not self.broken:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._drop()
+        return len(text)
+
+    def flush(self) -> None:
+        if not self.broken:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._drop()
+
+    def _drop(self) -> None:
+        self.broken = True
+        try:                                    # Python's own flush at exit must not fail either
+            fd = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(fd, self._stream.fileno())
+            os.close(fd)
+        except (OSError, ValueError, AttributeError):
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def _run(args) -> int:
+    stdout = sys.stdout
+    sys.stdout = _PipeSafe(stdout)
+    try:
+        return _run_command(args)
+    finally:
+        sys.stdout.flush()
+        sys.stdout = stdout
+
+
+def _run_command(args) -> int:
+    try:
+        threads.configure(args.threads)
+        progress.set_quiet(args.quiet)
+        result = args.func(args)
+        if getattr(args, "json", None) and result is not None:
+            write_json(result, args.json)
+    except Terminated:
+        sys.stderr.write(f"labid {args.command}: terminated\n")
+        return 143
+    except KeyboardInterrupt:
+        sys.stderr.write(f"labid {args.command}: interrupted\n")
+        return 130
+    except SystemExit as e:
+        return e.code if isinstance(e.code, int) else 1
+    except Exception as e:  # noqa: BLE001 - the door: every failure is mapped to the contract
+        line = failure_line(e)
+        if line is not None:
+            line = " ".join(line.split())            # one line, whatever the message held
+            sys.stderr.write(f"labid {args.command}: error: {line}\n")
+            return 2
+        where = crash_report(args.command, e)
+        tail = f"; traceback in {where}" if where else ""
+        sys.stderr.write(f"labid {args.command}: internal error ({type(e).__name__}){tail} (exit 1)\n")
+        return 1
+    # a command may ask for another exit code on success (``identify --strict``: 3)
+    return int(getattr(args, "exit_code", 0) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""labid/report."""

@@ -1,0 +1,259 @@
+"""The GUM uncertainty budget of an identification (issue 16): specimen ``[uncertainty]``.
+
+The specimen file may hold a table of type-B standard uncertainties, SI units::
+
+    [uncertainty]
+    thickness = 2e-5          # m, plate (laminate) thickness
+    length = 5e-4             # m
+    width = 5e-4              # m
+    density = 27.0            # kg/m^3  -- or --  mass = 0.005  (kg, the plate weighed)
+    sensor_position = 1e-3    # m, each sensor (wave sensors along the path; accelerometers in x and y)
+    source_position = 1e-3    # m, the wave source along the path
+    path_length = 0.0         # m, the source-sensor distance itself (beyond the positions)
+
+Absent keys take :data:`DEFAULTS` (docs/uncertainty.md). With ``mass`` the density is not
+an input: it follows from the mass and the dimensions, rho = m / (L W h), so a thickness
+error also moves the density (E ~ h^-3 instead of h^-2 for a thin plate).
+
+:func:`identify_budget` finite-differences the forward model of the fitted problem in
+each input (central differences, relative step :data:`REL_STEP`) at the estimate and
+hands the changes to :func:`engine.fit.budget.gum_budget` (dp/dx = -J^+ dr/dx).
+:func:`budget_text` is the console table. Units SI.
+"""
+from __future__ import annotations
+
+import math
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from engine.fit.budget import BudgetInput, gum_budget
+from engine.fit import Estimate
+from engine.forward import pair_by_mac
+from engine.plate import Mesh, PlateModel
+
+from ..base.errors import UserError
+from .identification.estimation import Problem, problem_from_features
+from ..inputs.features import read_features
+from ..inputs.specimen import BUILTIN, Specimen
+from ..base.summary import display_unit
+
+__all__ = ["DEFAULTS", "KEYS", "REL_STEP", "uncertainty_table", "budget_inputs", "identify_budget",
+           "budget_of_problem", "budget_text"]
+
+#: keys of ``[uncertainty]`` and their units
+KEYS = {"thickness": "m", "length": "m", "width": "m", "density": "kg/m^3", "mass": "kg",
+        "sensor_position": "m", "source_position": "m", "path_length": "m"}
+#: defaults: (value, relative?) -- relative ones are a fraction of the nominal value
+DEFAULTS = {"thickness": (0.01, True), "length": (5e-4, False), "width": (5e-4, False),
+            "density": (0.01, True), "sensor_position": (1e-3, False), "source_position": (1e-3, False),
+            "path_length": (0.0, False)}
+#: relative step of the central differences (dimensions, density, mass)
+REL_STEP = 1e-3
+#: step of the accelerometer position differences, m
+POS_STEP = 1e-3
+
+
+# --------------------------------------------------------------------------- the table
+def _specimen_doc(doc: Mapping, base_dir: str | Path, src: str) -> Mapping:
+    s = doc.get("specimen")
+    if isinstance(s, Mapping):
+        return s
+    if not isinstance(s, str):
+        return {}
+    if s in BUILTIN:
+        return tomllib.loads(resources.files("labid.data").joinpath(BUILTIN[s]).read_text())
+    p = Path(s) if Path(s).is_absolute() else Path(base_dir) / s
+    try:
+        return tomllib.loads(p.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as e:
+        raise UserError(f"cannot read the specimen for its [uncertainty] table ({e})", file=str(p)) from None
+
+
+def uncertainty_table(doc: Mapping, spec: Specimen, base_dir: str | Path = ".", src: str = "<features>"
+                      ) -> dict[str, tuple[float, str]]:
+    """``{key: (standard uncertainty in SI, 'specimen' | 'default')}`` of the specimen a
+    features document names (inline table, path relative to ``base_dir`` or built-in)."""
+    sdoc = _specimen_doc(doc, base_dir, src)
+    tab = sdoc.get("uncertainty", {})
+    where = spec.source if spec.source else src
+    if not isinstance(tab, Mapping):
+        raise UserError("expected a table [uncertainty] of standard uncertainties in SI units",
+                        file=where, key="uncertainty")
+    for k, v in tab.items():
+        if k not in KEYS:
+            raise UserError(f"unknown key; expected one of {sorted(KEYS)}", file=where, key=f"uncertainty.{k}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v >= 0):
+            raise UserError(f"value {v!r}: expected a standard uncertainty >= 0 in {KEYS[k]}",
+                            file=where, key=f"uncertainty.{k}")
+    if "mass" in tab and "density" in tab:
+        raise UserError("both density and mass given; expected one of them", file=where, key="uncertainty.mass")
+    nominal = {"thickness": spec.laminate.thickness, "density": spec.laminate.mean_density}
+    out: dict[str, tuple[float, str]] = {}
+    for k, (v, rel) in DEFAULTS.items():
+        if k == "density" and "mass" in tab:
+            continue
+        if k in tab:
+            out[k] = (float(tab[k]), "specimen")
+        else:
+            out[k] = (v * nominal[k] if rel else v, "default")
+    if "mass" in tab:
+        out["mass"] = (float(tab["mass"]), "specimen")
+    return out
+
+
+# --------------------------------------------------------------------------- the inputs
+def _scaled_mesh(mesh: Mesh, length: float, width: float) -> Mesh:
+    """The same elements stretched to ``length`` x ``width`` (no change of element count)."""
+    xe = np.asarray(mesh.xe, float) * (length / mesh.length)
+    ye = np.asarray(mesh.ye, float) * (width / mesh.width)
+    return Mesh(mesh.nx, mesh.ny, length, width, tuple(xe), tuple(ye))
+
+
+def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[str, tuple[float, str]]
+                  ) -> tuple[list[BudgetInput], list[str]]:
+    """The type-B inputs of ``problem`` at ``est`` with their residual changes (finite
+    differences of the forward models), and notes on the inputs left out."""
+    spec, feats, mat = problem.specimen, problem.features, problem.material
+    notes: list[str] = []
+    params0 = est.params
+    rho0 = spec.laminate.materials[mat].density
+    L0, W0, h0 = spec.length, spec.width, spec.laminate.thickness
+    fitted_density = "density" in est.names
+    by_mass = "mass" in table
+    has_modal = problem.modal_forward is not None
+    masses = list(feats.rig.masses()) if (feats is not None and has_modal) else []
+    base_model = problem.modal_forward.model if has_modal else None
+    mesh = base_model.mesh if has_modal else None
+    y_obs = np.concatenate([b.observed for b in problem.blocks])
+    wave_doc = {k: v for k, v in doc.items() if k != "modal"} if doc.get("waves") else None
+    if has_modal:
+        # the perturbed models' modes follow the fitted ones by MAC on the full shape vectors
+        # (re-pairing with the measured shapes could swap close modes between the two sides
+        # of a difference)
+        fw = problem.modal_forward
+        n_solve = fw.n_solve + 4
+        index0 = fw.solve(dict(params0)).index
+        ref = base_model.solve(n_solve, params=dict(params0), material=mat).shapes[:, index0].T
+
+    plain: list = []    # the mesh's model without masses, built once for the position inputs
+
+    n_wave = sum(b.observed.size for b in problem.blocks if b.kind == "waves")
+
+    def predicted(L=L0, W=W0, h=h0, mass_rel=0.0, rho_rel=0.0, shift=(0.0, 0.0)) -> np.ndarray:
+        lam = spec.laminate.scaled_thickness(h / h0) if h != h0 else spec.laminate
+        sp = Specimen(spec.name, L, W, lam, spec.source)
+        par = dict(params0)
+        if not fitted_density:
+            rho = rho0 * (1.0 + rho_rel)
+            if by_mass:
+                rho = rho0 * (L0 * W0 * h0) / (L * W * h) * (1.0 + mass_rel)
+            par["density"] = rho
+        model = None
+        if has_modal:
+            if shift != (0.0, 0.0) or L != L0 or W != W0:
+                if L != L0 or W != W0:
+                    model = PlateModel.build(lam, L, W, mesh=_scaled_mesh(mesh, L, W))
+                else:   # the same mesh for the 4 position differences: built once (~0.2 s CPU each)
+                    if not plain:
+                        plain.append(PlateModel.build(lam, L, W, mesh=mesh))
+                    model = plain[0]
+                mm = [(x + shift[0], y + shift[1], w) for x, y, w in masses]
+                if mm:
+                    model = model.with_point_masses(mm)
+            else:
+                model = base_model.with_laminate(lam) if h != h0 else base_model
+        parts = []
+        if has_modal:
+            modes = model.solve(n_solve, params=par, material=mat)
+            j, _ = pair_by_mac(ref, modes.shapes.T)
+            parts.append(modes.frequencies_hz[j])
+        if wave_doc is not None and (L != L0 or W != W0 or shift != (0.0, 0.0)) and h == h0 and not (
+                by_mass and not fitted_density):
+            # the SAFE velocities do not depend on the plate's length, width or the accelerometers:
+            # their central difference is exactly 0 (8 of the 13 predictions of the demo's budget)
+            parts.append(np.zeros(n_wave))
+        elif wave_doc is not None:
+            pb = problem_from_features(wave_doc, specimen=sp, material=mat, src=problem.source)
+            parts += [np.asarray(b.predict(par), float) for b in pb.blocks]
+        return np.concatenate(parts)
+
+    def central(make: Callable[[float], dict], step: float) -> np.ndarray:
+        return (predicted(**make(step)) - predicted(**make(-step))) / (2.0 * step)
+
+    inputs: list[BudgetInput] = []
+
+    def add(name: str, value: float, unit: str, d: np.ndarray) -> None:
+        u, source = table[name]
+        inputs.append(BudgetInput(name, float(value), float(u), unit, np.asarray(d, float), source))
+
+    add("thickness", h0, "m", central(lambda s: {"h": h0 + s}, REL_STEP * h0))
+    if has_modal:
+        add("length", L0, "m", central(lambda s: {"L": L0 + s}, REL_STEP * L0))
+        add("width", W0, "m", central(lambda s: {"W": W0 + s}, REL_STEP * W0))
+    if fitted_density:
+        notes.append("density is identified: its type-B input (density or mass) is not used")
+    elif by_mass:
+        m0 = spec.mass
+        add("mass", m0, "kg", central(lambda s: {"mass_rel": s / m0}, REL_STEP * m0))
+    else:
+        add("density", rho0, "kg/m^3", central(lambda s: {"rho_rel": s / rho0}, REL_STEP * rho0))
+    if masses:
+        for axis, name in ((0, "x"), (1, "y")):
+            d = central(lambda s, a=axis: {"shift": (s, 0.0) if a == 0 else (0.0, s)}, POS_STEP)
+            u, source = table["sensor_position"]
+            inputs.append(BudgetInput(f"accelerometer_position_{name}", 0.0, u, "m", d, source))
+    wave_rows = np.concatenate([np.full(b.observed.size, b.kind == "waves") for b in problem.blocks])
+    if wave_rows.any():
+        path = feats.rig.wave_path_m if feats is not None else None
+        if not path:
+            notes.append("waves without rig.wave_path_m: sensor, source and path-length inputs not propagated")
+        else:
+            # observed group velocity = d / t: d(model - observed)/dd = -observed / d
+            d = np.where(wave_rows, -y_obs / path, 0.0)
+            for name in ("sensor_position", "source_position", "path_length"):
+                if table[name][0] > 0:
+                    add(name, path if name == "path_length" else 0.0, "m", d)
+    if not est.method.startswith("levenberg"):
+        notes.append(f"method {est.method}: sensitivities from the least-squares normal equations at its estimate")
+    return inputs, notes
+
+
+# --------------------------------------------------------------------------- entry points
+def budget_of_problem(problem: Problem, est: Estimate, doc: Mapping, base_dir: str | Path = ".") -> dict:
+    """The ``uncertainty_budget`` JSON of ``est`` fitted on ``problem`` (from features ``doc``)."""
+    table = uncertainty_table(doc, problem.specimen, base_dir, problem.source)
+    inputs, notes = budget_inputs(problem, est, doc, table)
+    return gum_budget(problem.blocks, est, inputs, notes=notes).to_dict()
+
+
+def identify_budget(problem: Problem, est: Estimate, features_path: str | Path) -> dict:
+    """The ``uncertainty_budget`` of ``labid identify FEATURES.json`` (specimen path relative to it)."""
+    p = Path(features_path)
+    return budget_of_problem(problem, est, read_features(p), p.parent)
+
+
+def budget_text(b: Mapping[str, Any]) -> str:
+    """Console table: per constant U (k, coverage), u_c, and each input's contribution."""
+    lines = [f"  uncertainty budget (GUM): expanded U = k u_c, coverage {b['coverage']}:"]
+    for n, c in b["constants"].items():
+        unit, sc = display_unit(n)
+        unit = f" {unit}" if unit else ""
+        rel = f" ({100 * c['U_rel']:.2g} %)" if c.get("U_rel") is not None else ""
+        lines.append(f"  {n:>7} = {c['value'] * sc:10.4g} +- {c['U'] * sc:.3g}{unit}{rel}  "
+                     f"[u_c {c['u_combined'] * sc:.3g}: type A {c['u_type_a'] * sc:.3g}, type B {c['u_type_b'] * sc:.3g}]")
+        if not math.isfinite(c["u_combined"]):
+            lines.append("           no budget: the fit does not determine this constant (infinite type-A std)")
+            continue
+        rows = sorted(c["contributions"].items(), key=lambda kv: -kv[1]["u"])
+        lines.append("           " + ", ".join(f"{k} {v['u'] * sc:.2g} ({100 * v['share']:.0f} %)"
+                                              for k, v in rows if v["share"] >= 0.005))
+    inp = ", ".join(f"{x['name']} {x['u']:.3g} {x['unit']}{'' if x['source'] == 'specimen' else ' (default)'}"
+                    for x in b["inputs"])
+    lines.append(f"  inputs (standard uncertainties): {inp}")
+    lines += [f"  note: {n}" for n in b["notes"]]
+    return "\n".join(lines) + "\n"
