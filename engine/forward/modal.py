@@ -18,10 +18,9 @@ from functools import lru_cache
 from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from ..fit import DataBlock, IdentificationError
-from .pairing import Assignment, assign, visibility
+from .pairing import Assignment, assign, match, visibility
 
 __all__ = ["mac", "pair_by_mac", "pair_by_frequency", "ModalSolution", "ModalForward", "SelectedModes",
            "modal_block", "MIN_MAC_POINTS", "PAIR_REL_FREQ", "extra_modes", "params_key", "MODES_KEPT"]
@@ -46,9 +45,7 @@ def pair_by_mac(measured: np.ndarray, predicted: np.ndarray) -> tuple[np.ndarray
     Returns ``(index, mac_value)`` arrays of length ``len(measured)``.
     """
     M = mac(measured, predicted)
-    rows, cols = linear_sum_assignment(-M)
-    idx = np.empty(M.shape[0], int)
-    idx[rows] = cols
+    idx = match(-M)
     return idx, M[np.arange(M.shape[0]), idx]
 
 
@@ -64,8 +61,7 @@ def pair_by_frequency(measured_hz, predicted_hz, mac_values: np.ndarray | None =
                   - np.log(predicted_hz)[None, :]) / rel
     if mac_values is not None:
         cost = cost + 1.0 - mac_values
-    rows, cols = linear_sum_assignment(cost)
-    return cols[np.argsort(rows)]
+    return match(cost)
 
 
 #: parameter sets whose modes a ModalForward keeps (each ~1.4 MB for 56 modes of 3125 DOF)

@@ -14,7 +14,7 @@ the peaks re-paired, up to 4 rounds or until a pairing repeats; the findings are
 * "peak k (f Hz) is probably mode m (f' Hz)";
 * "predicted mode m near f Hz has no measured peak[, which the response
   point barely sees (relative amplitude a)]": a = largest |w| at the
-  accelerometers over the largest |w| on a 21 x 21 grid of the plate;
+  accelerometers over the largest |w| on the plate (``engine.forward.pairing.visibility``);
 * "peak k (f Hz) matches no mode (nearest: mode m at f' Hz): suspension,
   harmonic or electrical?".
 
@@ -26,9 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
-from scipy.optimize import least_squares, linear_sum_assignment
+from scipy.optimize import least_squares
 
 from ..forward import ModalForward
+from ..forward.pairing import match, visibility
 from .residuals import GapFit
 
 __all__ = ["PairingCheck", "pairing_check", "propose_pairing", "BARELY_SEEN", "UNPAIRED_REL"]
@@ -67,26 +68,8 @@ def propose_pairing(measured_hz, predicted_hz, rel: float = 0.05, unpaired_rel: 
     log-frequency distance / ``rel``; leaving a peak unpaired costs log(1 + unpaired_rel) / rel."""
     fm = np.log(np.asarray(measured_hz, float))
     fp = np.log(np.asarray(predicted_hz, float))
-    n = len(fm)
-    cost = np.abs(fm[:, None] - fp[None, :]) / rel
-    dummy = np.full((n, n), 1e9)
-    np.fill_diagonal(dummy, np.log1p(unpaired_rel) / rel)
-    rows, cols = linear_sum_assignment(np.hstack([cost, dummy]))
-    out: list[int | None] = [None] * n
-    for r, c in zip(rows, cols):
-        out[r] = int(c) if c < len(fp) else None
-    return out
-
-
-def _visibility(model, modes, points, length, width) -> np.ndarray:
-    g = np.linspace(0.0, 1.0, 21)
-    X, Y = np.meshgrid(g * length, g * width)
-    W = np.abs(model.shapes_at(modes, np.column_stack([X.ravel(), Y.ravel()])))
-    top = np.max(W, axis=1)
-    if not len(points):
-        return np.ones(len(top))
-    S = np.abs(model.shapes_at(modes, np.asarray(points, float)))
-    return np.max(S, axis=1) / np.where(top > 0, top, 1.0)
+    idx = match(np.abs(fm[:, None] - fp[None, :]) / rel, np.log1p(unpaired_rel) / rel)
+    return [int(c) if c >= 0 else None for c in idx]
 
 
 def _fit(F, inner, names, th0, paired, sel, y, sig, n, nw):
@@ -151,7 +134,7 @@ def pairing_check(F: GapFit, p_hat: dict, r0: np.ndarray, alpha: float, dof: flo
     p_new = {nm: float(v) for nm, v in zip(names, np.exp(res.x))}
     modes = inner.solve(p_new).modes
     fp = modes.frequencies_hz
-    vis = _visibility(model, modes, prob.rig.accelerometers, prob.length, prob.width)
+    vis = visibility(model, modes, prob.rig.accelerometers, length=prob.length, width=prob.width)
     findings = []
     for i, j in enumerate(prop):
         if j is None:
