@@ -4,7 +4,7 @@ where they enter."""
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any
 
 from ..base.errors import UserError
 
@@ -28,12 +28,6 @@ def within(v: float, kind: str, key: str, src: str) -> float:
     if not (math.isnan(v) or lo <= v <= hi):
         raise UserError(f"value {v:g}: outside [{lo:g}, {hi:g}] ({kind})", file=src, key=key)
     return v
-
-
-def check_keys(tab: Mapping, allowed: set[str], where: str, src: str) -> None:
-    for k in tab:
-        if k not in allowed:
-            raise UserError(f"unknown key; expected one of {sorted(allowed)}", file=src, key=f"{where}{k}")
 
 
 def mode_index(v: Any, n: int, src: str) -> list[int | None]:

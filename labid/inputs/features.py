@@ -35,7 +35,8 @@ from engine.features import Features, ModalData, RigLayout, WaveData
 from ..base.errors import UserError
 from .files import read_json_file
 from .featurelimits import (LIMITS, MAX_SPECIMEN_BYTES, MODAL_KEYS, RIG_KEYS, SHAPES_KEYS, TOP_KEYS,
-                            WAVE_KEYS, check_keys, mode_index, position, within)
+                            WAVE_KEYS, mode_index, position, within)
+from .keys import check_keys
 from .specimen import BUILTIN, Specimen, load_specimen, specimen_from_dict
 
 __all__ = ["validate_features", "read_features", "write_features", "features_text",

@@ -17,6 +17,7 @@ from drivers.protocol import ChannelConfig, Timing, Trigger
 
 from ..base.errors import UserError
 from .files import read_text_file
+from .keys import check_keys as _keys   # the one key check (labid.inputs.keys)
 from .rigtypes import (BUILTIN, ROLES, KINDS, COUPLINGS, FILTERS, DEFAULT_MAX_RATE_HZ, FACES, SOURCE_KINDS,
                        WINDOWS, PAIRS, AntiAlias, DeviceSpec, WaveSensor, Burst, Source, SimSettings, Rig)
 
@@ -33,12 +34,6 @@ def _table(doc: Mapping[str, Any], key: str, src: str, where: str = "", required
     if not isinstance(v, Mapping):
         raise _err(src, where + key, f"value {v!r}: expected a table")
     return v
-
-
-def _keys(tab: Mapping[str, Any], allowed: set[str], where: str, src: str) -> None:
-    for k in tab:
-        if k not in allowed:
-            raise _err(src, where + k, f"unknown key; expected one of {sorted(allowed)}")
 
 
 def _num(tab: Mapping[str, Any], key: str, where: str, src: str, *, default: Any = ...,

@@ -20,6 +20,7 @@ from engine.laminate import Laminate, Material, PhysicsError, Ply
 
 from ..base.errors import UserError
 from .files import read_text_file
+from .keys import check_keys
 
 BUILTIN = {"cfrp": "cfrp_12ply.toml", "aluminium": "aluminium_3175.toml"}
 
@@ -42,13 +43,6 @@ UNCERTAINTY_KEYS = {"thickness", "length", "width", "density", "mass", "sensor_p
 #: ``[report]``: the report header (strings or numbers)
 REPORT_KEYS = {"lab", "client", "operator", "specimen_id", "method", "temperature_c",
                "suspension", "revision"}
-
-
-def check_keys(tab: Mapping[str, Any], allowed: set[str], where: str, src: str) -> None:
-    """UserError naming the first key of ``tab`` not in ``allowed``."""
-    for k in tab:
-        if k not in allowed:
-            raise UserError(f"unknown key; expected one of {sorted(allowed)}", file=src, key=f"{where}{k}")
 
 
 def unit_slip(name: str, value: float, key: str, src: str | None = None) -> None:

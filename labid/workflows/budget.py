@@ -39,6 +39,7 @@ from engine.plate import Mesh, PlateModel
 from ..base.errors import UserError
 from .identification.estimation import Problem, problem_from_features
 from ..inputs.features import read_features
+from ..inputs.keys import check_keys
 from ..inputs.specimen import BUILTIN, Specimen
 from ..base.summary import display_unit
 
@@ -84,9 +85,8 @@ def uncertainty_table(doc: Mapping, spec: Specimen, base_dir: str | Path = ".", 
     if not isinstance(tab, Mapping):
         raise UserError("expected a table [uncertainty] of standard uncertainties in SI units",
                         file=where, key="uncertainty")
+    check_keys(tab, KEYS, "uncertainty.", where)
     for k, v in tab.items():
-        if k not in KEYS:
-            raise UserError(f"unknown key; expected one of {sorted(KEYS)}", file=where, key=f"uncertainty.{k}")
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (np.isfinite(v) and v >= 0):
             raise UserError(f"value {v!r}: expected a standard uncertainty >= 0 in {KEYS[k]}",
                             file=where, key=f"uncertainty.{k}")
