@@ -7,6 +7,7 @@ import numpy as np
 
 from engine.fit import estimate
 from engine.forward import mac, modal_block, pair_by_mac
+from engine.forward.pairing import match
 
 
 def test_mac_definition():
@@ -24,6 +25,18 @@ def test_pair_by_mac_is_one_to_one():
     meas = pred[[4, 0, 2]] * np.array([[2.0], [-1.0], [0.5]]) + 0.05 * rng.standard_normal((3, 20))
     idx, val = pair_by_mac(meas, pred)
     assert idx.tolist() == [4, 0, 2] and np.all(val > 0.95)
+
+
+def test_match_solves_the_textbook_assignment_and_leaves_costly_rows_unpaired():
+    # the classic 3 x 3 example (Kuhn 1955 style; scipy's linear_sum_assignment docs): optimum 5
+    cost = np.array([[4.0, 1.0, 3.0], [2.0, 0.0, 5.0], [3.0, 2.0, 2.0]])
+    idx = match(cost)
+    assert idx.tolist() == [1, 0, 2] and cost[np.arange(3), idx].sum() == 5.0
+    # a row whose every pair costs more than leaving it unexplained stays unpaired (-1)
+    cost2 = np.vstack([cost, [50.0, 60.0, 70.0]])
+    assert match(cost2, unexplained=10.0).tolist() == [1, 0, 2, -1]
+    # more rows than columns, no unexplained cost: the surplus row is -1, never garbage
+    assert sorted(match(cost2).tolist()) == [-1, 0, 1, 2]
 
 
 class _TwoModePlate:
