@@ -376,6 +376,24 @@ def spectra_of_run(run: str | Path) -> modal.Spectra | None:
     return spec
 
 
+def stored_settings(analysis: Mapping | None) -> AnalysisSettings:
+    """The modal settings a run was analysed with (its stored ``/results/analysis``; defaults
+    for what is not stored)."""
+    s = (analysis or {}).get("settings") or {}
+    kw: dict[str, Any] = {}
+    for k in ("modal_fmax_hz", "modal_fmin_hz", "exp_tau_s", "force_window_s", "indicator"):
+        v = s.get(k)
+        if v is None or v == "none":
+            continue
+        kw[k] = str(v) if k == "indicator" else float(v)
+    return AnalysisSettings(**kw)
+
+
+def analysed_spectra(hammer: Sequence[Record], analysis: Mapping | None) -> modal.Spectra | None:
+    """The spectra (H1 with a force) of hammer records as the run's stored analysis computed them."""
+    return modal_features(hammer, stored_settings(analysis), [])[1]
+
+
 def spectrum_indicator(spec: modal.Spectra) -> np.ndarray:
     """The summed normalised spectrum the picks are made on (``engine.modal.indicator``)."""
     return modal.indicator(spec)
@@ -549,7 +567,7 @@ def export_run(run: str | Path, *, uff: str | Path | None = None, csv_dir: str |
                binary: bool = True) -> dict:
     """Write a run's FRFs, time data and picked modes as UFF (58, 55, 15) and its features,
     constants and diagnosis as CSV tables (``labid export``; ``labid.io.exporters``)."""
-    return exporters.export_run(run, uff=uff, csv_dir=csv_dir, binary=binary)
+    return exporters.export_run(run, uff=uff, csv_dir=csv_dir, binary=binary, spectra=analysed_spectra)
 
 
 def write_result_tables(result: Mapping, what: str, csv_dir: str | Path) -> list[str]:

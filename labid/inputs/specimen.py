@@ -247,3 +247,12 @@ def load_specimen(path: str | Path) -> Specimen:
     except tomllib.TOMLDecodeError as e:
         raise UserError(f"not valid TOML ({e})", file=src) from None
     return specimen_from_dict(doc, src)
+
+
+def specimen_text(spec: Specimen) -> str:
+    """The TOML text a specimen was read from ('' for an inline one): what a run file keeps."""
+    src = spec.source
+    if src.startswith("builtin:"):
+        return resources.files("labid.data").joinpath(BUILTIN[src[8:]]).read_text()
+    p = Path(src)
+    return p.read_text() if p.is_file() else ""

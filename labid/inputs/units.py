@@ -15,7 +15,9 @@ Sensitivities: ``V/(m/s^2)``, ``mV/(m/s^2)``, ``mV/g``, ``V/g``, ``V/N``, ``mV/N
 """
 from __future__ import annotations
 
+import math
 import re
+from typing import Sequence
 
 G0 = 9.80665            # m/s^2, standard gravity (exact by definition)
 LBF = 4.4482216152605   # N, pound-force (exact by definition)
@@ -83,3 +85,9 @@ def sensitivity_si(value: float, unit: str) -> tuple[str, float] | None:
         return None
     quantity, f = q
     return quantity, float(value) * _VOLT[num] / f
+
+
+def loss_factors(damping_ratio: Sequence[float]) -> list[float]:
+    """The hysteretic loss factor eta = 2 zeta of each viscous damping ratio zeta (the same
+    damping in its two conventions; NaN where zeta is missing)."""
+    return [2.0 * float(z) if z is not None and math.isfinite(float(z)) else math.nan for z in damping_ratio]

@@ -40,14 +40,13 @@ import datetime as dt
 import json
 import math
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ..workflows.analysis import AnalysisSettings, modal_features
-from ..workflows.damping import loss_factors
 from ..base.errors import UserError
 from ..inputs.rig import rig_from_text
+from ..inputs.units import loss_factors
 from ..store import RunStore, decode_result, software_version
 
 #: UFF58 specific data types (record 8-11, field 1)
@@ -142,20 +141,15 @@ def uff_modes(frequencies_hz: Sequence[float], nodes: Sequence[int] = (),
     return out
 
 
-def _settings(stored: Mapping | None) -> AnalysisSettings:
-    """The modal settings the run was analysed with (defaults for what is not stored)."""
-    s = (stored or {}).get("settings") or {}
-    kw: dict[str, Any] = {}
-    for k in ("modal_fmax_hz", "modal_fmin_hz", "exp_tau_s", "force_window_s", "indicator"):
-        v = s.get(k)
-        if v is None or v == "none":
-            continue
-        kw[k] = str(v) if k == "indicator" else float(v)
-    return AnalysisSettings(**kw)
+#: the hammer spectra (``engine.modal.Spectra``, with ``frf`` when a force is recorded) of a
+#: run's hammer records as its stored analysis (or None) computed them: the analysis
+#: workflow's, passed in by ``labid.services`` (io imports no workflow)
+SpectraOf = Callable[[Sequence[Any], Any], Any]
 
 
-def export_uff(run: str | Path, path: str | Path, binary: bool = True) -> dict:
-    """Write the UFF file of a run (module docstring); returns what was written."""
+def export_uff(run: str | Path, path: str | Path, binary: bool = True, spectra: SpectraOf | None = None) -> dict:
+    """Write the UFF file of a run (module docstring); returns what was written. Without
+    ``spectra`` no FRF is written."""
     import pyuff  # noqa: PLC0415
 
     with RunStore(run, "r") as st:
@@ -173,7 +167,7 @@ def export_uff(run: str | Path, path: str | Path, binary: bool = True) -> dict:
     counts = {"frf": 0, "time": 0, "modes": 0}
     notes = []
     if hammer:
-        _, spec, _ = modal_features(hammer, _settings(analysis if isinstance(analysis, dict) else None), [])
+        spec = spectra(hammer, analysis if isinstance(analysis, dict) else None) if spectra else None
         if spec is not None and spec.frf is not None and hnode is not None:
             for k, ch in enumerate(spec.channels):
                 sets.append(uff_frf(ch, nodes.get(ch, k + 1), hnode, spec.frequencies_hz, spec.frf[k], note,
@@ -344,13 +338,13 @@ def export_csv(run: str | Path, csv_dir: str | Path) -> dict:
 
 
 def export_run(run: str | Path, *, uff: str | Path | None = None, csv_dir: str | Path | None = None,
-               binary: bool = True) -> dict:
+               binary: bool = True, spectra: SpectraOf | None = None) -> dict:
     """``labid export``: the UFF file and/or the CSV tables of a run."""
     if uff is None and csv_dir is None:
         raise UserError("nothing to do; expected --uff FILE and/or --csv DIR", key="--uff")
     out: dict[str, Any] = {"run": str(run), "notes": []}
     if uff is not None:
-        u = export_uff(run, uff, binary)
+        u = export_uff(run, uff, binary, spectra)
         out["notes"] += u.pop("notes")
         out.update(u)
     if csv_dir is not None:

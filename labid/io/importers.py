@@ -36,10 +36,9 @@ import numpy as np
 
 from drivers.protocol import Record, Timing
 
-from ..workflows.acquisition import specimen_text
 from ..base.errors import UserError
 from ..inputs.rig import Rig, load_rig
-from ..inputs.specimen import Specimen, load_specimen
+from ..inputs.specimen import Specimen, load_specimen, specimen_text
 from ..store import RunStore
 from ..inputs import calibration as calib
 from .readers import Column, read_columns, split_header

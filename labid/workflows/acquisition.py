@@ -15,8 +15,6 @@ methods. ``LiveSession`` also hands every device read (accepted or not) to
 """
 from __future__ import annotations
 
-from importlib import resources
-from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
@@ -29,21 +27,12 @@ from ..base.errors import UserError
 from ..inputs.calibration import calibrate, nidaq_teds, status as calibration_status
 from ..inputs.rig import Rig, load_rig
 from ..store import RunStore
-from ..inputs.specimen import BUILTIN as SPECIMENS, Specimen, load_specimen
+from ..inputs.specimen import Specimen, load_specimen, specimen_text
 
 BACKENDS = ("mock", "nidaqmx")
 KINDS = ("hammer", "wave")
 
 Progress = Callable[[dict], None]
-
-
-def specimen_text(spec: Specimen) -> str:
-    """The TOML text a specimen was read from ('' for an inline one)."""
-    src = spec.source
-    if src.startswith("builtin:"):
-        return resources.files("labid.data").joinpath(SPECIMENS[src[8:]]).read_text()
-    p = Path(src)
-    return p.read_text() if p.is_file() else ""
 
 
 def double_hit(force: np.ndarray, rate_hz: float, min_gap_s: float = 5e-4,

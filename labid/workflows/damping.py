@@ -27,16 +27,13 @@ from engine.forward import mac, pair_by_frequency
 from engine.laminate import PhysicsError
 from engine.plate import FEError, PlateModel, mode_families
 
+from ..inputs.units import loss_factors
+
 __all__ = ["damping_summary", "loss_factors", "family_labels", "family_of", "UNLABELLED", "MAX_LABEL_OFFSET"]
 
 UNLABELLED = "unlabelled"
 #: largest relative distance between a peak and the model mode that names its family
 MAX_LABEL_OFFSET = 0.15
-
-
-def loss_factors(damping_ratio: Sequence[float]) -> list[float]:
-    """eta = 2 zeta per mode (NaN where zeta is missing)."""
-    return [2.0 * float(z) if z is not None and math.isfinite(float(z)) else math.nan for z in damping_ratio]
 
 
 def family_labels(frequencies_hz: Sequence[float], specimen, *, points=None, shapes=None) -> list[str]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import re
 
-from labid.workflows.acquisition import specimen_text
+from labid.inputs.specimen import specimen_text
 from labid.report.certificate import build_report
 from labid.inputs.rig import read_rig_text
 from labid.inputs.specimen import load_specimen
