@@ -6,8 +6,9 @@ Pure functions on plain data (no I/O, no Qt, no engine import), each returning a
 - ``eng(value, unit, digits=4) -> str``: engineering notation with an SI prefix,
   ``eng(1.367e11, "Pa") == "136.7 GPa"``, ``eng(4.94e-4, "Hz") == "494.0 µHz"``;
   ``unit=""`` gives a bare number (``0.3``); NaN/None gives ``"—"``.
-- ``unit_of(name) -> str``: SI unit of an elastic constant by name: ``E*``/``G*``/``C*`` ->
-  ``Pa``, ``nu*`` -> ``""``, ``density``/``rho`` -> ``kg/m³``, ``thickness`` -> ``m``.
+- ``unit_of(name, plain=False) -> str``: SI unit of an elastic constant by name: ``E*``/``G*``/``C*`` ->
+  ``Pa``, ``nu*`` -> ``""``, ``density``/``rho`` -> ``kg/m³``, ``thickness`` -> ``m``; ``plain``:
+  ASCII for files (``kg/m^3``, ``1`` for a ratio: the CSV's ``unit`` column).
 - ``display_unit(name) -> (unit, scale)``: the fixed unit of a console or panel column and
   the factor from SI: Pa constants in ``("GPa", 1e-9)``, others in their ``unit_of`` with 1.
 - ``constant_with_u(name, value, std, k=2) -> str``: ``"136.7 GPa ± 1.6 GPa (k=2)"``,
@@ -98,19 +99,19 @@ def _eng_exp(x: float, digits: int) -> int:
     return e
 
 
-def unit_of(name: str) -> str:
-    """SI unit of a constant by name (see module doc)."""
+def unit_of(name: str, plain: bool = False) -> str:
+    """SI unit of a constant by name (see module doc); ``plain``: ASCII, '1' for a ratio."""
     n = str(name)
     low = n.lower()
     if low.startswith("nu"):
-        return ""
+        return "1" if plain else ""
     if low in ("density", "rho"):
-        return "kg/m³"
+        return "kg/m^3" if plain else "kg/m³"
     if low in ("thickness", "length", "width"):
         return "m"
     if n[:1] in ("E", "G", "C"):
         return "Pa"
-    return ""
+    return "1" if plain else ""
 
 
 def display_unit(name: str) -> tuple[str, float]:

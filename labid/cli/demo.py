@@ -26,6 +26,7 @@ from ..base.errors import UserError
 from ..report.certificate import write_report
 from ..inputs.specimen import load_specimen
 from .options import add_json_option
+from ..base.summary import display_unit
 
 DATASETS = ("modal", "waves", "combined")
 #: the identification starts from datasheet values (issue 12): 17-22 % below the simulated
@@ -36,7 +37,8 @@ WAVES_PARAMS = ("E1", "G13", "G23")
 
 
 def _fmt(name: str, v: float) -> str:
-    return f"{v:.4f}" if name.startswith("nu") else f"{v / 1e9:.3f} GPa"
+    unit, scale = display_unit(name)
+    return f"{v * scale:.3f} {unit}" if unit else f"{v:.4f}"
 
 
 def format_table(truth: dict[str, float], results: dict[str, dict]) -> str:
@@ -52,8 +54,8 @@ def format_table(truth: dict[str, float], results: dict[str, dict]) -> str:
                 continue
             v, s = p["value"], p["std"]
             err = 100.0 * (v - truth[n]) / truth[n]
-            scale = 1.0 if n.startswith("nu") else 1e9
-            cell = f"{v / scale:.4g} ± {s / scale:.2g}  ({err:+.2f} %)"
+            scale = display_unit(n)[1]
+            cell = f"{v * scale:.4g} ± {s * scale:.2g}  ({err:+.2f} %)"
             row += f"{cell:>42}"
         lines.append(row)
     return "\n".join(lines)

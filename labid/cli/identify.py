@@ -15,6 +15,7 @@ from ..workflows import cluster
 from .. import services
 from ..workflows.budget import budget_text, identify_budget
 from .options import add_json_option
+from ..base.summary import display_unit
 from ..base.errors import UserError
 from ..workflows.identification import (METHODS, distinct_minima, load_problem, minima_summary, multi_start,
                                         load_features, parse_assignments, plot_multi_start, random_starts,
@@ -130,7 +131,8 @@ def _print(out: dict, names) -> None:
     ident = out["identifiability"]["parameters"]
     for n in names:
         v, s = out["parameters"][n]["value"], out["parameters"][n]["std"]
-        unit, sc = ("", 1.0) if n.startswith("nu") else ((" kg/m^3", 1.0) if n == "density" else (" GPa", 1e-9))
+        unit, sc = display_unit(n)
+        unit = f" {unit}" if unit else ""
         flag = "" if ident[n]["identified"] else (
             f"   (not identified: {ident[n].get('reason', 'poorly identified')})" if n in out.get("held", {})
             else f"   (not identified: {ident[n].get('reason', 'poorly identified')}; "

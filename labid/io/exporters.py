@@ -47,19 +47,12 @@ import numpy as np
 from ..base.errors import UserError
 from ..inputs.rig import rig_from_text
 from ..inputs.units import loss_factors
+from ..base.summary import unit_of
 from ..store import RunStore, decode_result, software_version
 
 #: UFF58 specific data types (record 8-11, field 1)
 SPEC_TYPE = {"accelerometer": 12, "force": 13, "voltage": 1}
 UNIT_LABEL = {"accelerometer": "m/s^2", "force": "N", "voltage": "V"}
-_PARAM_UNIT = {"density": "kg/m^3"}
-
-
-def param_unit(name: str) -> str:
-    """SI unit of an identified parameter: Pa for moduli, kg/m^3 for density, 1 for ratios."""
-    return _PARAM_UNIT.get(name, "1" if name.startswith("nu") else "Pa")
-
-
 # ------------------------------------------------------------------ UFF
 def node_numbers(channels: Sequence[Any], hammer: bool) -> tuple[dict[str, int], int | None]:
     """UFF node of each rig channel (its number in the rig, from 1) and of the hammer point."""
@@ -283,7 +276,7 @@ def constants_rows(result: Mapping, name: str = "identification") -> list[list[A
         val, std = v.get("value"), v.get("std")
         info = ident.get(p) or {}
         rel = info.get("rel_std", (std / abs(val)) if val and std is not None else None)
-        rows.append([name, p, val, std, param_unit(p), rel, info.get("identified"),
+        rows.append([name, p, val, std, unit_of(p, plain=True), rel, info.get("identified"),
                      "+".join(info.get("constrained_by") or [])])
     return rows
 

@@ -58,12 +58,8 @@ SHORT_TABLE = 12
 
 # ------------------------------------------------------------------ html
 def _fmt(v: float) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "—"
-    a = abs(v)
-    if a >= 1e6:
-        return f"{v / 1e9:.4g} GPa" if a >= 1e8 else f"{v:.4g}"
-    return f"{v:.4g}"
+    """A plain number (4 significant digits; '—' for none), never given a unit by its size."""
+    return eng(v)
 
 
 def _param(name: str, v: float) -> str:

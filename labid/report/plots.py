@@ -17,6 +17,7 @@ import numpy as np
 
 from ..base import atomic
 from ..base.errors import UserError
+from ..base.summary import display_unit
 
 __all__ = ["plot_multi_start", "plot_gap"]
 
@@ -35,7 +36,7 @@ def plot_multi_start(results: Sequence[Mapping], names: Sequence[str], path: str
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.0 * rows), squeeze=False)
     idx = np.arange(1, len(results) + 1)
     for ax, n in zip(axes.ravel(), names):
-        unit, scale = ("", 1.0) if n.startswith("nu") else (("kg/m$^3$", 1.0) if n == "density" else ("GPa", 1e-9))
+        unit, scale = display_unit(n)
         st = np.array([r["start"].get(n, np.nan) for r in results]) * scale
         val = np.array([r.get("values", {}).get(n, np.nan) for r in results]) * scale
         ok = np.array([bool(r.get("converged")) for r in results])
