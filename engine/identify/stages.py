@@ -1,7 +1,7 @@
 """The identification's fit over data blocks, with its stages and its verdict (issue 12).
 
 :func:`fit_blocks` is the estimator the workflow (``labid.workflows.identification.estimation.run``) and the gap
-diagnosis call; :func:`identify` does the whole job from an ``engine.features.Features``:
+diagnosis call, on the blocks of ``engine.identify.blocks.feature_blocks``:
 
 1. the blocks (``modal_block`` with the discretisation correction of
    ``engine.plate.convergence`` and likelihood pairing; ``wave_block``), kept in the fit's
@@ -27,19 +27,16 @@ from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..features import Features
 from ..fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
                    laplace, nelder_mead_fit, whitened_jacobian)
 from ..laminate import PhysicsError
 from ..plate import PlateModel, mode_families
 from ..plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
-from ..forward.modal import MIN_MAC_POINTS, extra_modes, modal_block
 from ..forward.pairing import MISS, MISS_UNKNOWN, SPURIOUS, visibility
 from .surrogate import RitzSurrogate, global_search
 from .verdict import BOX, POISSON_MAX, RUNAWAY, FitContext, admissibility, bounds, boxed, systematic, verdict
-from ..forward.waves import wave_block
 
-__all__ = ["FitContext", "fit_blocks", "identify", "verdict", "admissibility", "bounds", "boxed",
+__all__ = ["FitContext", "fit_blocks", "verdict", "admissibility", "bounds", "boxed",
            "global_starts", "repair_loop", "pairing_report", "discretisation", "RUNAWAY", "BOX",
            "POISSON_MAX", "N_GLOBAL_FITS", "MAX_REPAIR", "TAU_RANGE", "N_EXTRA_MODES", "identifiable",
            "HOLD_REL", "HELD_PRIOR", "systematic"]
@@ -407,54 +404,3 @@ def _discretisation(laminate, length: float, width: float, masses, model, materi
             f"(largest correction {100 * (mc.ratio[k] - 1):+.3g} % at mode {k + 1}; remaining error "
             f"<= {100 * mc.error_rel.max():.2g} % added to the sigmas)")
     return mc.ratio, mc.error_rel, note
-
-
-def identify(features: Features, names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
-             *, plate_model=None, correct_discretisation: bool = True, drive_points=None, **kw) -> Estimate:
-    """Constants ``names`` (default: the features' ``param_names()``) from ``features``
-    (engine form), from ``start`` (default nominal), with every stage of this module.
-    ``plate_model``: a prebuilt default-mesh ``PlateModel`` with the rig's masses;
-    ``drive_points``: hammer points (m) for the modes' visibility; ``kw`` go to
-    :func:`fit_blocks`. Wave points with a NaN velocity are dropped."""
-    mat = features.material_obj
-    material = features.material
-    nominal = {k: v for k, v in mat.params().items()}
-    names = tuple(names) if names else features.param_names()
-    st = {n: float((start or {}).get(n, nominal[n])) for n in names}
-    blocks, notes, fwd = [], [], None
-    md = features.modal
-    if md is not None:
-        model = plate_model
-        masses = features.rig.masses()
-        if model is None:
-            model = PlateModel.build(features.laminate, features.length, features.width)
-            if masses:
-                model = model.with_point_masses(masses)
-        f = np.asarray(md.frequency_hz, float)
-        n_extra = extra_modes(f.size, N_EXTRA_MODES)
-        corr = err = None
-        if correct_discretisation:
-            corr, err, note = discretisation(features.laminate, features.length, features.width, masses, model,
-                                             material, f.size + n_extra)
-            notes.append(note)
-        resp = features.rig.accelerometers or (md.points if md.points is not None else None)
-        use_mac = (md.shapes is not None and md.points is not None and len(md.points) >= MIN_MAC_POINTS
-                   and md.pairing in ("auto", "mac"))
-        blk, fwd = modal_block(model, f, md.sigma_hz, points=md.points if use_mac else None,
-                               shapes=md.shapes if use_mac else None, material=material,
-                               correction=corr, model_error_rel=err,
-                               pairing="order" if md.pairing == "order" else "likelihood",
-                               response_points=resp, drive_points=drive_points,
-                               labels=getattr(md, "mode_index", None), n_extra=n_extra)
-        blocks.append(blk)
-    for w in features.waves:
-        ok = np.isfinite(w.frequency_hz) & np.isfinite(w.group_velocity_m_s) & np.isfinite(w.sigma_m_s)
-        if ok.any():
-            blocks.append(wave_block(features.laminate, np.asarray(w.frequency_hz)[ok],
-                                     np.asarray(w.group_velocity_m_s)[ok], np.asarray(w.sigma_m_s)[ok],
-                                     mode=w.mode, direction_deg=w.direction_deg, material=material,
-                                     name=f"waves:{w.label}"))
-    if not blocks:
-        raise IdentificationError("no modal frequencies and no wave velocities: nothing to identify")
-    ctx = FitContext(mat, nominal, mat.isotropic, features.length, features.width, fwd, material)
-    return fit_blocks(ctx, blocks, names, st, notes=notes, **kw)

@@ -18,19 +18,14 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-import numpy as np
-
 from engine.features import Features
 from engine.fit import DataBlock, Estimate, IdentificationError, Prior
-from engine.forward import modal_block, wave_block
-from engine.identify.stages import (BOX, N_EXTRA_MODES, POISSON_MAX, RUNAWAY, FitContext, bounds,
-                                    identifiable, fit_blocks, pairing_report)
+from engine.identify.blocks import feature_blocks
+from engine.identify.stages import (BOX, POISSON_MAX, RUNAWAY, FitContext, bounds, identifiable, fit_blocks,
+                                    pairing_report)
 from engine.identify.stages import admissibility as engine_admissibility
-from engine.identify.stages import discretisation as discretisation_error
 from engine.identify.stages import verdict as engine_verdict
-from engine.forward.modal import MIN_MAC_POINTS, extra_modes
 from engine.laminate import PhysicsError
-from engine.plate import PlateModel
 
 from ...base.errors import UserError
 from ...inputs.features import parse_features
@@ -89,69 +84,30 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
     """
     parsed = parse_features(doc, base_dir, src, specimen=specimen)
     spec, feats = parsed.specimen, parsed.features
-    notes = list(parsed.notes)
     mats = spec.laminate.materials
     if material is None:
         if len(mats) != 1:
             raise UserError(f"laminate has materials {sorted(mats)}; expected a single material",
                             file=src, key="specimen")
         material = next(iter(mats))
-    blocks: list[DataBlock] = []
-    fwd = None
-    md = feats.modal
-    if md is not None:
-        f, sig = md.frequency_hz, md.sigma_hz
-        if f.size == 0:
-            raise UserError("expected a non-empty list of numbers", file=src, key="modal.frequencies_hz")
-        if modal_model is None:
-            try:
-                modal_model = PlateModel.build(spec.laminate, spec.length, spec.width)
-            except PhysicsError as e:
-                raise UserError(str(e), file=src, key="specimen") from None
-            masses = feats.rig.masses()
-            if masses:
-                modal_model = modal_model.with_point_masses(masses)
-                notes.append(f"modal model includes {len(masses)} accelerometer mass(es)")
-        corr = err = None
-        n_extra = extra_modes(f.size, N_EXTRA_MODES)
-        if discretisation:
-            corr, err, note = discretisation_error(spec.laminate, spec.length, spec.width, feats.rig.masses(),
-                                                   modal_model, material, f.size + n_extra)
-            notes.append(note)
-        pairing = "order" if md.pairing == "order" else "likelihood"
-        resp = feats.rig.accelerometers or (md.points if md.points is not None else None)
-        drive = getattr(feats.rig, "hammer", None)   # not in the features yet: (x, y) m when it is
-        labels = feats.mode_index                    # optional peak labels (features modal.mode_index, 0-based)
-        # MAC pairing needs enough shape points (as engine.forward.model's 'auto'); with
-        # fewer (e.g. three accelerometers) the likelihood pairing is more reliable
-        use_mac = (md.shapes is not None and md.points is not None and len(md.points) >= MIN_MAC_POINTS
-                   and md.pairing in ("auto", "mac"))
-        try:
-            blk, fwd = modal_block(modal_model, f, sig, points=md.points if use_mac else None,
-                                   shapes=md.shapes if use_mac else None, material=material,
-                                   correction=corr, model_error_rel=err, pairing=pairing,
-                                   response_points=resp, drive_points=None if drive is None else [drive],
-                                   labels=labels, n_extra=n_extra)
-        except IdentificationError as e:
-            raise UserError(str(e), file=src, key="modal") from None
-        blocks.append(blk)
+    feats = replace(feats, material=material)
+    if feats.modal is not None and feats.modal.frequency_hz.size == 0:
+        raise UserError("expected a non-empty list of numbers", file=src, key="modal.frequencies_hz")
     for i, w in enumerate(feats.waves):
-        where = f"waves[{i}]."
-        fr, cg, sig = w.frequency_hz, w.group_velocity_m_s, w.sigma_m_s
-        if fr.size == 0:
-            raise UserError("expected a non-empty list of numbers", file=src, key=where + "frequency_hz")
-        ok = np.isfinite(fr) & np.isfinite(cg) & np.isfinite(sig)
-        if not ok.all():
-            notes.append(f"{where}: {int((~ok).sum())} point(s) without a velocity dropped")
-        if ok.sum() == 0:
-            continue
-        mode, d = w.mode, w.direction_deg
-        blocks.append(wave_block(spec.laminate, fr[ok], cg[ok], sig[ok], mode=mode, direction_deg=d,
-                                 material=material, name=f"waves[{i}]:{mode}@{d:g}deg"))
+        if w.frequency_hz.size == 0:
+            raise UserError("expected a non-empty list of numbers", file=src, key=f"waves[{i}].frequency_hz")
+    drive = getattr(feats.rig, "hammer", None)   # not in the features yet: (x, y) m when it is
+    try:
+        blocks, notes, fwd = feature_blocks(feats, plate_model=modal_model, correct_discretisation=discretisation,
+                                            drive_points=None if drive is None else [drive])
+    except PhysicsError as e:
+        raise UserError(str(e), file=src, key="specimen") from None
+    except IdentificationError as e:
+        raise UserError(str(e), file=src, key="modal") from None
     if not blocks:
         raise UserError("no modal frequencies and no wave velocities: nothing to identify",
                         file=src, key="modal/waves")
-    return Problem(spec, blocks, material, fwd, src, notes, replace(feats, material=material))
+    return Problem(spec, blocks, material, fwd, src, list(parsed.notes) + notes, feats)
 
 
 # ---------------------------------------------------------------------------

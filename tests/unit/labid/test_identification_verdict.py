@@ -108,17 +108,16 @@ def test_a_fit_that_sets_most_peaks_aside_is_never_identified():
     clean peaks (the others set aside as unexplained) and ends at E1 -18 % with chi^2/nu
     0.01: the verdict must call it inconsistent and identify nothing. With the global stage
     (the default, every method) the same start reaches the truth within 0.1 %."""
-    from engine.identify.stages import identify
-    from labid.workflows.identification import problem_from_features, synthetic_features
+    from labid.workflows.identification import problem_from_features, run, synthetic_features
     doc = synthetic_features("cfrp", n_modes=10, waves=())
     doc["specimen"] = "cfrp"
-    feats = problem_from_features(doc).features
+    problem = problem_from_features(doc)
     start = {"E1": 110e9, "E2": 10.8e9, "G12": 4e9}
-    bad = identify(feats, ("E1", "E2", "G12"), start, method="bayes", global_stage=False).to_dict()
+    bad = run(problem, ("E1", "E2", "G12"), start, method="bayes", global_stage=False).to_dict()
     unexplained = sum(r["mode_index"] is None for r in bad["pairing"])
     assert unexplained > 2
     assert bad["fit"]["consistent"] is False and bad["identified"] is False
     assert not any(p["identified"] for p in bad["parameters"].values())
-    good = identify(feats, ("E1", "E2", "G12"), start, method="bayes").to_dict()
+    good = run(problem, ("E1", "E2", "G12"), start, method="bayes").to_dict()
     assert good["fit"]["consistent"] and good["identified"]
     assert good["parameters"]["E1"]["value"] == pytest.approx(136.7e9, rel=1e-3)

@@ -1,0 +1,87 @@
+"""The data blocks of the identification, built once from ``engine.features.Features``.
+
+:func:`feature_blocks` is the one place the measured features become the estimators'
+``DataBlock``\\ s: natural frequencies -> the plate FE (``engine.forward.modal_block``: the
+rig's accelerometer masses on the plate, the discretisation correction and error of
+``engine.plate.convergence`` (:func:`engine.identify.stages.discretisation`), pairing by MAC
+with enough shape points, else the likelihood pairing with missing and spurious peaks),
+group velocities -> SAFE (``engine.forward.wave_block``; points without a velocity
+dropped). The workflow (``labid.workflows.identification.estimation.problem_from_features``)
+checks the document first and names the key of what is wrong.
+
+Units SI (Hz, m/s, m, kg).
+"""
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..features import Features
+from ..fit import DataBlock
+from ..forward.modal import MIN_MAC_POINTS, extra_modes, modal_block
+from ..forward.waves import wave_block
+from ..plate import PlateModel
+from .stages import N_EXTRA_MODES, discretisation
+
+__all__ = ["Blocks", "feature_blocks"]
+
+
+class Blocks(NamedTuple):
+    """The blocks (modal first, then one per wave set), the notes on what was assumed or
+    dropped, and the modal forward model (None without modal data)."""
+
+    blocks: list[DataBlock]
+    notes: list[str]
+    modal_forward: Any
+
+
+def feature_blocks(features: Features, *, plate_model=None, correct_discretisation: bool = True,
+                   drive_points=None) -> Blocks:
+    """The data blocks of ``features`` (its ``material`` set). ``plate_model``: a prebuilt
+    default-mesh ``PlateModel`` of the same specimen with the rig's masses (else built here,
+    ``PhysicsError`` for an unphysical laminate); ``drive_points``: hammer points (m, (k, 2))
+    for the modes' visibility. Raises ``IdentificationError`` from the modal block."""
+    material = features.material
+    blocks: list[DataBlock] = []
+    notes: list[str] = []
+    fwd = None
+    md = features.modal
+    if md is not None:
+        f = np.asarray(md.frequency_hz, float)
+        masses = features.rig.masses()
+        model = plate_model
+        if model is None:
+            model = PlateModel.build(features.laminate, features.length, features.width)
+            if masses:
+                model = model.with_point_masses(masses)
+                notes.append(f"modal model includes {len(masses)} accelerometer mass(es)")
+        n_extra = extra_modes(f.size, N_EXTRA_MODES)
+        corr = err = None
+        if correct_discretisation:
+            corr, err, note = discretisation(features.laminate, features.length, features.width, masses, model,
+                                             material, f.size + n_extra)
+            notes.append(note)
+        resp = features.rig.accelerometers or (md.points if md.points is not None else None)
+        # MAC pairing needs enough shape points; with fewer (e.g. three accelerometers) the
+        # likelihood pairing is more reliable
+        use_mac = (md.shapes is not None and md.points is not None and len(md.points) >= MIN_MAC_POINTS
+                   and md.pairing in ("auto", "mac"))
+        blk, fwd = modal_block(model, f, md.sigma_hz, points=md.points if use_mac else None,
+                               shapes=md.shapes if use_mac else None, material=material,
+                               correction=corr, model_error_rel=err,
+                               pairing="order" if md.pairing == "order" else "likelihood",
+                               response_points=resp, drive_points=drive_points,
+                               labels=features.mode_index, n_extra=n_extra)
+        blocks.append(blk)
+    for i, w in enumerate(features.waves):
+        fr, cg, sig = (np.asarray(a, float) for a in (w.frequency_hz, w.group_velocity_m_s, w.sigma_m_s))
+        ok = np.isfinite(fr) & np.isfinite(cg) & np.isfinite(sig)
+        if not ok.all():
+            notes.append(f"waves[{i}].: {int((~ok).sum())} point(s) without a velocity dropped")
+        if ok.sum() == 0:
+            continue
+        blocks.append(wave_block(features.laminate, fr[ok], cg[ok], sig[ok], mode=w.mode,
+                                 direction_deg=w.direction_deg, material=material,
+                                 name=f"waves[{i}]:{w.mode}@{w.direction_deg:g}deg"))
+    return Blocks(blocks, notes, fwd)
