@@ -34,7 +34,7 @@ Units SI: m, kg, s, Pa, Hz, m/s, K.
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
@@ -223,8 +223,3 @@ class ForwardModel:
             with np.errstate(divide="ignore", invalid="ignore"):   # absent mode: non-finite
                 parts += self.predict_waves(params, effects)
         return np.concatenate(parts)
-
-    def modal_jacobian(self, params: Mapping[str, float], names: Sequence[str]) -> np.ndarray:
-        """d f / d p (Hz per unit p) of the nominal modal model (analytic)."""
-        _, J = self.modal_forward().jacobian(dict(params), list(names))
-        return J

@@ -20,7 +20,7 @@ is the viscous ratio zeta = sigma / |p|. Units SI throughout.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal, Sequence
 
 import numpy as np
@@ -28,7 +28,7 @@ from scipy import ndimage, optimize, signal, stats
 
 from .spectral import ModalError, Spectra, indicator
 
-__all__ = ["Peak", "pick_peaks", "fit_peaks", "add_peak", "remove_peak", "with_shape"]
+__all__ = ["Peak", "pick_peaks", "fit_peaks", "add_peak", "remove_peak"]
 
 
 @dataclass(frozen=True)
@@ -382,8 +382,3 @@ def remove_peak(peaks: Sequence[Peak], f_hz: float, tol_hz: float | None = None)
     if tol_hz is not None and abs(peaks[i].frequency_hz - f_hz) > tol_hz:
         return tuple(peaks)
     return tuple(p for j, p in enumerate(peaks) if j != i)
-
-
-def with_shape(peak: Peak, shape: Sequence[float]) -> Peak:
-    """The same peak with another shape vector."""
-    return replace(peak, shape=tuple(float(s) for s in shape))

@@ -55,10 +55,6 @@ class ForceHistory:
             return np.where(t >= 0, A * 0.5 * (1.0 - np.cos(np.pi * r)), 0.0)
         return np.where(t < self.t[0], 0.0, np.interp(t, self.t, self.f))
 
-    @property
-    def final_value(self) -> float:
-        return {"half_sine": 0.0, "step": self.amplitude_n}.get(self.kind, float(self.f[-1]) if self.f is not None else 0.0)
-
     def derivative_spectrum(self, frequency_hz) -> np.ndarray:
         """FT of dF/dt, exp(-i 2 pi f t) convention, N."""
         w = TWO_PI * np.asarray(frequency_hz, float)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-from threadpoolctl import threadpool_info, threadpool_limits
+from threadpoolctl import threadpool_limits
 
 from .errors import UserError
 
@@ -95,8 +95,3 @@ def for_workers() -> int | None:
     """Threads for worker processes: what this process applied, else the decision
     (None: the user's variables, which the workers inherit)."""
     return _applied if _applied is not None else decide().threads
-
-
-def library_threads() -> dict[str, int]:
-    """Threads each loaded BLAS/OpenMP library will use: ``{path: num_threads}``."""
-    return {i["filepath"]: int(i["num_threads"]) for i in threadpool_info()}

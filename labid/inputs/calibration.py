@@ -15,7 +15,7 @@ more than 2 % apart is reported. A channel in neither keeps the rig file's sensi
 What a shot was recorded with goes into its ``meta`` (``Calibration.meta``, compact: per
 channel [serial, sensitivity V/SI, calibration date, due date, source]) and the sheet text
 into ``/config/calibration_csv`` of the run. An overdue calibration (due date before today)
-is warned about once per process (``warn_overdue``); ``status`` gives the panel and the
+is warned about once per process (``warn_lines``); ``status`` gives the panel and the
 report what to show.
 """
 from __future__ import annotations
@@ -266,12 +266,6 @@ def warn_lines(lines: Iterable[str], sheet: str | None = None, write: Callable[[
         write(f"{prefix}: warning: {line}\n")
         out.append(line)
     return out
-
-
-def warn_overdue(cal: Calibration | None, write: Callable[[str], object] | None = None,
-                 today: dt.date | None = None, prefix: str = "labid") -> list[str]:
-    """Warn once per process about each overdue calibration of ``cal`` (``warn_lines``)."""
-    return warn_lines(overdue_lines(cal, today), cal.sheet if cal else None, write, prefix)
 
 
 def status(cal: Calibration | None, today: dt.date | None = None) -> dict:

@@ -4,8 +4,8 @@
 picks the resonances (``engine.modal``) and measures the A0 (and, where it
 can be separated, S0) group velocity with the complex Morlet CWT
 (``engine.waves``), and returns the features document with the picks and
-curves behind it. ``analyze_run(path, out)`` also writes the features file
-and stores everything in the run file under ``/results/analysis``:
+curves behind it. ``store_analysis(run, analysis, out)`` (``labid.services.run_analysis``) writes
+the features file and stores everything in the run file under ``/results/analysis``:
 
     analysis/features   {json: features text}
     analysis/spectrum   {frequencies_hz, indicator, kind}
@@ -44,7 +44,7 @@ from ..store import RunStore
 from ..inputs.specimen import Specimen, specimen_from_dict
 
 __all__ = ["AnalysisSettings", "Analysis", "modal_features", "wave_features", "analyze_store",
-           "analyze_run", "default_wavelet"]
+           "default_wavelet"]
 
 
 @dataclass(frozen=True)
@@ -368,19 +368,6 @@ def analysis_results(an: Analysis, text: str, settings: AnalysisSettings) -> dic
         s["wave_band_hz"] = an.wave_band_hz          # the band the analysis chose (the panel shows it)
     res["settings"] = {k: ("none" if v is None else (list(v) if isinstance(v, tuple) else v)) for k, v in s.items()}
     return res
-
-
-def analyze_run(run: str | Path, out: str | Path | None = None,
-                settings: AnalysisSettings = AnalysisSettings()) -> dict:
-    """Analyse a run file: write the features JSON (``out``, default
-    ``<run>.features.json``) and store features, picks and curves in the run
-    (``/results/analysis``). Returns the features document."""
-    run = Path(run)
-    out = Path(out) if out is not None else run.with_name(run.stem + ".features.json")
-    with RunStore(run, "r") as st:
-        an = analyze_store(st, settings)
-    store_analysis(run, an, out, settings)
-    return an.features
 
 
 def store_analysis(run: str | Path, an: Analysis, out: str | Path,
