@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from bench.blind import KINDS, LIBRARY, OUT_OF_LIBRARY, RANGES, draw_case  # noqa: E402
 from engine.gap import GapFit, GapForward, GapOptions  # noqa: E402
-from labid.workflows.diagnosis import problem_from_features, run_diagnosis  # noqa: E402
+from labid.workflows.diagnosis import gap_features, run_diagnosis  # noqa: E402
 
 #: (kind, count, outside generator); run round-robin over the kinds (see _plan). The
 #: outside clean cases are the false-alarm study on a generator that is not the
@@ -55,7 +55,7 @@ def oracle_dchi2(case) -> float:
     be seen reliably against the chi^2 threshold."""
     if case.kind not in LIBRARY:
         return float("nan")
-    pr = problem_from_features(case.features)
+    pr = gap_features(case.features)
     F = GapFit(pr, GapForward(pr, pairing="mac"), GapOptions().model_rel_sigma)
     p = case.truth_constants
     ref = {"sensor_aperture": pr.rig.sensor_length_m} if case.kind == "sensor_aperture" else {}

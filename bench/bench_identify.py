@@ -29,8 +29,9 @@ import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 
 from engine.plate import PlateModel  # noqa: E402
-from labid.workflows.identification import (multi_start, plot_multi_start, problem_from_features,
+from labid.workflows.identification import (multi_start, problem_from_features,  # noqa: E402
                                             random_starts, run, synthetic_features)
+from labid.report.plots import plot_multi_start  # noqa: E402
 from labid.inputs.specimen import load_specimen  # noqa: E402
 
 GPA = 1e9

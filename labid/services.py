@@ -1,8 +1,9 @@
 """The one place the lab panel, the command line and the report reach run files and workflows.
 
-Over 500 lines on purpose: it is the single facade every front-end imports (the architecture
-rule), in sections (run file, acquisition, analysis, identification, import/export); each
-function is a thin call into its workflow module.
+The single facade every front-end imports (the architecture rule), in sections (run file,
+acquisition, analysis, identification and diagnosis, import/export); each function is a thin
+call into its workflow module. Identification and diagnosis are written in
+``labid.inference`` and re-exported here.
 
 Front-ends (``labid.gui``, ``labid.cli``, ``labid.report``)
 call these functions; they never open a ``RunStore`` or call ``engine``
@@ -12,12 +13,13 @@ as it needs it and closes it again, so a view never holds the file open.
 
 Run file: ``open_run`` (-> ``RunData``: configuration, shot counts, up to
 ``max_shots`` shots, every results group decoded), ``shots``,
-``read_result``/``store_result``, ``save_session``/``session_state``,
-``stored_features``, ``discard_empty_run``.
+``read_result``/``store_result``/``result_history`` (identifications and diagnoses are
+kept: a new one moves the older one to ``/results/history/<name>/<n>``, never replaces it
+silently), ``save_session``/``session_state``, ``stored_features``, ``discard_empty_run``.
 Workflows: ``acquire`` (+ ``parse_effects``, ``check_daq``,
 ``read_instruments``), ``run_analysis``, ``save_picks`` (+ ``stored_peaks``,
-``spectra_of_run``, ``toggle_peak``), ``run_identification``,
-``run_diagnosis``, ``store_for_features`` (a CLI result into the run its
+``spectra_of_run``, ``toggle_peak``), ``run_identification`` (-> ``Identification``, the
+typed result), ``run_diagnosis``, ``store_for_features`` (a CLI result into the run its
 features came from).
 Import, export, calibration (``labid.io``): ``import_records``, ``export_run``,
 ``write_result_tables``, ``calibration_status`` (a rig's sheet, for the panel),
@@ -32,7 +34,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -44,35 +46,39 @@ from engine import modal
 from mock_hw.rig import Effects
 
 from .base import atomic
-from .workflows import diagnosis as diag
-from .workflows import identification as ident
+from .base.results import Identification
+from .runresults import HISTORY_GROUP, KEPT, kept, read_result, result_history, store_for_features, store_result
+from .inference import (METHODS, check_prior, connect_scheduler, default_params_for, identification_of,
+                        load_features_file,
+                        minima_summary, parse_names, parse_start, run_diagnosis, run_identification,
+                        run_of_features, select_data, specimen_for_features)
 from .workflows.acquisition import AcquisitionSession, LiveSession
-from .workflows.budget import budget_of_problem
 from .workflows.analysis import (Analysis, AnalysisSettings, analyze_store, modal_features, modal_table,
                                  store_analysis)
 from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
                       scalogram)
-from .base.errors import Cancelled, UserError
+from .base.errors import UserError
 from .workflows.damping import damping_summary
 from .inputs.features import features_text, specimen_of
 from .inputs import calibration as calib
 from .io import exporters, importers
 from .inputs.rig import Rig, load_rig
-from .inputs.specimen import Specimen, load_specimen, specimen_from_dict
+from .inputs.specimen import Specimen
 from .store import KINDS, RunStore, WriterLock, decode_result
 
 __all__ = [
     # the run file
-    "RunData", "open_run", "shots", "read_result", "store_result", "save_session", "session_state",
-    "lookup", "features_of", "stored_features", "discard_empty_run",
-    "FEATURES_GROUPS", "IDENT_GROUPS", "GAP_GROUPS", "SESSION_GROUP", "USER_ERRORS",
+    "RunData", "open_run", "shots", "read_result", "store_result", "result_history", "kept", "save_session",
+    "session_state", "lookup", "features_of", "stored_features", "discard_empty_run",
+    "FEATURES_GROUPS", "IDENT_GROUPS", "GAP_GROUPS", "SESSION_GROUP", "USER_ERRORS", "KEPT", "HISTORY_GROUP",
     # acquisition
     "parse_effects", "acquire", "check_daq", "read_instruments",
     # analysis and picks
-    "features_path", "run_analysis", "run_reference", "stored_peaks", "save_picks", "spectra_of_run",
-    "spectrum_indicator", "toggle_peak",
-    # identification and diagnosis
-    "select_data", "load_features_file", "specimen_for_features", "parse_start", "cancellable",
+    "AnalysisSettings", "features_path", "run_analysis", "run_reference", "stored_peaks", "save_picks", "spectra_of_run",
+    "spectrum_indicator", "toggle_peak", "stored_settings", "analysed_spectra",
+    # identification and diagnosis (labid.inference)
+    "Identification", "identification_of", "METHODS", "minima_summary", "default_params_for", "select_data", "load_features_file",
+    "specimen_for_features", "parse_start", "parse_names", "check_prior", "connect_scheduler",
     "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
     # import, export, calibration (labid.io)
     "import_records", "export_run", "write_result_tables", "calibration_status", "run_calibration",
@@ -121,6 +127,8 @@ def open_run(path: str | Path, max_shots: int = 0) -> RunData:
         if rd.counts["wave"] and max_shots:
             rd.wave = st.shots("wave", limit=max_shots)
         for name in st.result_names():
+            if name == HISTORY_GROUP:                 # older results: read on request (result_history)
+                continue
             try:
                 rd.results[name] = decode_result(st.read_group(name))
             except (KeyError, ValueError, OSError):
@@ -132,21 +140,6 @@ def shots(run: str | Path, kind: str, limit: int | None = None) -> list[Record]:
     """The committed shots of ``kind`` in ``run`` (at most ``limit``), as Records."""
     with RunStore(run, "r") as st:
         return st.shots(kind, limit=limit)
-
-
-def read_result(run: str | Path, name: str) -> Any:
-    """The result ``/results/<name>`` of ``run`` (its JSON copy preferred), None if absent."""
-    with RunStore(run, "r") as st:
-        try:
-            return st.read_result(name)
-        except KeyError:
-            return None
-
-
-def store_result(run: str | Path, name: str, data: Mapping) -> None:
-    """Write ``data`` under ``/results/<name>`` of ``run`` (structured + a JSON copy)."""
-    with RunStore(run, "a") as st:
-        st.write_result(name, dict(data))
 
 
 def save_session(run: str | Path, state: Mapping) -> None:
@@ -410,151 +403,7 @@ def toggle_peak(peaks: Sequence[modal.Peak], spec: modal.Spectra, f_hz: float,
 
 
 # ============================================================== identification and diagnosis
-def select_data(doc: Mapping, data: str) -> dict:
-    """The features document restricted to 'modal', 'waves' or 'combined' data."""
-    out = dict(doc)
-    if data == "modal":
-        out.pop("waves", None)
-    elif data == "waves":
-        out.pop("modal", None)
-    return out
-
-
-def load_features_file(path: str | Path) -> dict:
-    """A features file, validated, its specimen path made usable from anywhere."""
-    doc = ident.load_features(path)
-    spec = doc.get("specimen")
-    if isinstance(spec, str) and spec not in ("cfrp", "aluminium"):
-        p = Path(spec)
-        doc["specimen"] = str(p if p.is_absolute() else Path(path).parent / p)
-    return doc
-
-
-def specimen_for_features(doc: Mapping) -> Specimen | None:
-    """The specimen a features document refers to (inline, path or built-in); None if it names none."""
-    s = doc.get("specimen")
-    if isinstance(s, dict):
-        return specimen_from_dict(s, "features#specimen")
-    if isinstance(s, str) and s:
-        return load_specimen(s)
-    return None
-
-
-def parse_start(text: str | None, option: str = "start") -> dict[str, float]:
-    """Initial values 'P=V,..' (SI) as a dict; UserError naming ``option`` on a bad value."""
-    return ident.parse_assignments(text, option)
-
-
-def cancellable(blocks, should_stop: ShouldStop, progress: Progress):
-    """Data blocks whose model evaluations report ``("eval", n)`` and raise ``Cancelled``
-    once ``should_stop()``."""
-    count = {"n": 0}
-
-    def wrap(fn):
-        if fn is None:
-            return None
-
-        def inner(*a, **kw):
-            if should_stop():
-                raise Cancelled()
-            count["n"] += 1
-            progress(("eval", count["n"]))
-            return fn(*a, **kw)
-        return inner
-
-    return [replace(b, predict=wrap(b.predict), jacobian=wrap(b.jacobian)) for b in blocks]
-
-
-def run_identification(doc: Mapping, *, specimen: Specimen | None = None, base_dir: str | Path = ".",
-                       src: str = "<features>", names: Sequence[str] | None = None,
-                       start: Mapping[str, float] | None = None, method: str = "lm", n_starts: int = 0,
-                       data: str | None = None, progress: Progress | None = None,
-                       should_stop: ShouldStop | None = None, budget: bool = False) -> dict:
-    """Identify the constants from a features document (``labid.workflows.identification.run``).
-
-    ``budget``: add the GUM ``uncertainty_budget`` as ``labid identify`` does
-    (``labid.workflows.budget.budget_of_problem``; reported as ``("budget",)``); a budget that
-    fails leaves ``uncertainty_budget_error`` and never loses the identification.
-
-    With ``should_stop``/``progress`` (the panel) every model evaluation reports
-    ``("eval", n)`` and a stop request raises ``Cancelled``; ``n_starts`` random
-    starts (within +-50 %, one process) report ``("start", i, n)``. Returns the
-    estimate's dict, plus ``data``, ``specimen``, ``nominal`` and ``multi_start``
-    for the panel (``data`` given)."""
-    problem = ident.problem_from_features(doc, base_dir=base_dir, src=src, specimen=specimen)
-    if should_stop is not None or progress is not None:
-        problem.blocks = cancellable(problem.blocks, should_stop or (lambda: False),
-                                     progress or (lambda obj: None))
-    est = ident.run(problem, names, start or None, method=method)
-    out = est.to_dict()
-    if budget:
-        if progress:
-            progress(("budget",))
-        try:
-            out["uncertainty_budget"] = budget_of_problem(problem, est, doc, base_dir)
-        except Cancelled:
-            raise
-        except Exception as e:  # noqa: BLE001 - a failed budget must not lose the identification
-            out["uncertainty_budget_error"] = str(e) if isinstance(e, UserError) else f"{type(e).__name__}: {e}"
-    if data is None:
-        return out
-    out["data"] = data
-    out["specimen"] = problem.specimen.name
-    if n_starts:
-        stop = should_stop or (lambda: False)
-        st0 = {n: (start or {}).get(n, problem.nominal[n]) for n in est.names}
-        starts = ident.random_starts(st0, est.names, n_starts, seed=0)
-        runs = []
-        for i, st in enumerate(starts):
-            if stop():
-                raise Cancelled()
-            runs += ident.multi_start(doc, [st], est.names, specimen=specimen, method=method, max_workers=1)
-            if progress:
-                progress(("start", i + 1, n_starts))
-        out["multi_start"] = runs
-    out["nominal"] = {n: float(problem.nominal[n]) for n in est.names}
-    return out
-
-
-def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>", options=None,
-                  names: Sequence[str] | None = None, start: Mapping[str, float] | None = None,
-                  estimate: Mapping | None = None) -> dict:
-    """The sim-to-real gap diagnosis of a features document (``labid.workflows.diagnosis``), from
-    identify's estimate of ``names`` (None: identify's default selection) from ``start``;
-    ``estimate``: that identification's result dict when at hand (not recomputed)."""
-    return diag.run_diagnosis(doc, base_dir, src, options, names=names, start=start, estimate=estimate)
-
-
-def run_of_features(features_file: str | Path) -> Path | None:
-    """The run file a features file was computed from (its ``analysis.run``, relative
-    to the features file), if that file exists; else None."""
-    p = Path(features_file)
-    try:
-        doc = json.loads(p.read_text())
-    except (OSError, ValueError):
-        return None
-    ref = (doc.get("analysis") or {}).get("run") if isinstance(doc, dict) else None
-    if not isinstance(ref, str) or not ref:
-        return None
-    run = (Path(ref) if Path(ref).is_absolute() else p.parent / ref).resolve()
-    return run if run.is_file() else None
-
-
-def store_for_features(features_file: str | Path, name: str, result: Mapping) -> str | None:
-    """Store a result computed from a features file (``labid identify``, ``labid diagnose``)
-    under ``/results/<name>`` of the run the features came from, where the panel and the
-    report find it. Returns a one-line note for the user (stored, or why not: the result
-    itself is never lost to it), None when the features came from no run."""
-    run = run_of_features(features_file)
-    if run is None:
-        return None
-    try:
-        store_result(run, name, result)
-    except (UserError, OSError) as e:
-        return f"warning: result not stored in the run file: {e}"
-    return f"result stored in {run} (/results/{name})"
-
-
+# (labid.inference: run_identification, run_diagnosis and their option parsers, re-exported)
 # ============================================================== import, export, calibration (issue 16)
 def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specimen | str, out: str | Path,
                    map_text: str | None = None, **options) -> dict:

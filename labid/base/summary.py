@@ -11,8 +11,6 @@ Pure functions on plain data (no I/O, no Qt, no engine import), each returning a
   ASCII for files (``kg/m^3``, ``1`` for a ratio: the CSV's ``unit`` column).
 - ``display_unit(name) -> (unit, scale)``: the fixed unit of a console or panel column and
   the factor from SI: Pa constants in ``("GPa", 1e-9)``, others in their ``unit_of`` with 1.
-- ``constant_with_u(name, value, std, k=2) -> str``: ``"136.7 GPa ± 1.6 GPa (k=2)"``,
-  the expanded uncertainty U = k x std in the value's prefix.
 - ``constant_cells(name, value, std, k=2) -> (value, std, U, rel U)``: the cells of one
   constant as text, std and U in the value's prefix.
 - ``constants_table(parameters, k=2, nominal=None) -> str``: one row per constant of
@@ -35,6 +33,8 @@ Pure functions on plain data (no I/O, no Qt, no engine import), each returning a
   holds stdout for the JSON result.
 - ``table(head, rows, align=None) -> str``: the text table itself (columns padded,
   a dashed rule under the head); numbers right-aligned by default.
+- ``budget_text(uncertainty_budget) -> str``: the GUM budget of an identification as
+  ``labid identify`` prints it (per constant U, u_c, type A/B and each input's share).
 """
 from __future__ import annotations
 
@@ -42,8 +42,8 @@ import math
 import sys
 from typing import Any, Iterable, Mapping, Sequence
 
-__all__ = ["eng", "unit_of", "display_unit", "constant_cells", "constant_with_u", "constants_table", "pairing_table",
-           "modes_table", "dispersion_table", "next_step", "stream", "table", "PREFIXES"]
+__all__ = ["eng", "unit_of", "display_unit", "constant_cells", "constants_table", "pairing_table",
+           "modes_table", "dispersion_table", "next_step", "stream", "table", "budget_text", "PREFIXES"]
 
 #: SI prefixes by power of 1000
 PREFIXES = {-4: "p", -3: "n", -2: "µ", -1: "m", 0: "", 1: "k", 2: "M", 3: "G", 4: "T"}
@@ -139,14 +139,6 @@ def constant_cells(name: str, value: Any, std: Any, k: float = 2.0) -> tuple[str
         us = eng(k * s, "", 2) if s is not None else DASH
     rel = f"{100 * k * s / abs(v):.2g} %" if (v and s is not None) else DASH
     return vs, ss, us, rel
-
-
-def constant_with_u(name: str, value: Any, std: Any, k: float = 2.0) -> str:
-    """``'136.7 GPa ± 1.6 GPa (k=2)'``: value and expanded uncertainty U = k x std."""
-    vs, _, us, _ = constant_cells(name, value, std, k)
-    if us == DASH:
-        return vs
-    return f"{vs} ± {us} (k={k:g})"
 
 
 def table(head: Sequence[str], rows: Iterable[Sequence[Any]], align: str | None = None) -> str:
@@ -260,3 +252,25 @@ def next_step(counts: Mapping[str, int], results: Mapping[str, Any] | Iterable[s
 def stream(args):
     """``sys.stdout`` for a command's human summary, or None when ``--json -`` uses stdout."""
     return None if getattr(args, "json", None) == "-" else sys.stdout
+
+
+def budget_text(b: Mapping[str, Any]) -> str:
+    """Console table: per constant U (k, coverage), u_c, and each input's contribution."""
+    lines = [f"  uncertainty budget (GUM): expanded U = k u_c, coverage {b['coverage']}:"]
+    for n, c in b["constants"].items():
+        unit, sc = display_unit(n)
+        unit = f" {unit}" if unit else ""
+        rel = f" ({100 * c['U_rel']:.2g} %)" if c.get("U_rel") is not None else ""
+        lines.append(f"  {n:>7} = {c['value'] * sc:10.4g} +- {c['U'] * sc:.3g}{unit}{rel}  "
+                     f"[u_c {c['u_combined'] * sc:.3g}: type A {c['u_type_a'] * sc:.3g}, type B {c['u_type_b'] * sc:.3g}]")
+        if not math.isfinite(c["u_combined"]):
+            lines.append("           no budget: the fit does not determine this constant (infinite type-A std)")
+            continue
+        rows = sorted(c["contributions"].items(), key=lambda kv: -kv[1]["u"])
+        lines.append("           " + ", ".join(f"{k} {v['u'] * sc:.2g} ({100 * v['share']:.0f} %)"
+                                              for k, v in rows if v["share"] >= 0.005))
+    inp = ", ".join(f"{x['name']} {x['u']:.3g} {x['unit']}{'' if x['source'] == 'specimen' else ' (default)'}"
+                    for x in b["inputs"])
+    lines.append(f"  inputs (standard uncertainties): {inp}")
+    lines += [f"  note: {n}" for n in b["notes"]]
+    return "\n".join(lines) + "\n"

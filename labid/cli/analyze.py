@@ -11,7 +11,6 @@ import re
 
 from ..base import progress
 from .. import services
-from ..workflows.analysis import AnalysisSettings
 from .options import add_json_option
 from ..base.errors import UserError
 from ..base.summary import modes_table, stream
@@ -63,7 +62,7 @@ def run(args) -> dict:
     band = _pair(args.wave_band, "--wave-band") if args.wave_band else None
     if band and not band[0] < band[1]:
         raise UserError(f"value {args.wave_band!r}: expected FMIN < FMAX", key="--wave-band")
-    settings = AnalysisSettings(
+    settings = services.AnalysisSettings(
         modal_fmax_hz=args.modal_fmax, exp_tau_s=args.exp_window,
         wavelet=_pair(args.wavelet, "--wavelet") if args.wavelet else None,
         wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous",

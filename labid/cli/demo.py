@@ -21,12 +21,12 @@ from pathlib import Path
 from typing import Callable
 
 from .. import services
-from ..workflows.diagnosis import plot_gap
 from ..base.errors import UserError
-from ..report.certificate import write_report
-from ..inputs.specimen import load_specimen
-from .options import add_json_option
 from ..base.summary import display_unit
+from ..inputs.specimen import load_specimen
+from ..report.certificate import write_report
+from ..report.plots import plot_gap
+from .options import add_json_option
 
 DATASETS = ("modal", "waves", "combined")
 #: the identification starts from datasheet values (issue 12): 17-22 % below the simulated
@@ -41,23 +41,30 @@ def _fmt(name: str, v: float) -> str:
     return f"{v * scale:.3f} {unit}" if unit else f"{v:.4f}"
 
 
-def format_table(truth: dict[str, float], results: dict[str, dict]) -> str:
-    """Text table: true, identified +/- std and error (%) per constant and data set."""
+def format_table(truth: dict[str, float], results: dict[str, services.Identification]) -> str:
+    """Text table: true, identified +/- std and error (%) per constant and data set; a fitted
+    constant that is not identified (``Identification.status``) is marked * and named below."""
     names = [n for n in truth if n != "density"]
     lines = [f"{'constant':<9}{'true':>14}  " + "".join(f"{ds + ' (value ± std, error)':>42}" for ds in results)]
+    starred = False
     for n in names:
         row = f"{n:<9}{_fmt(n, truth[n]):>14}  "
         for ds, res in results.items():
-            p = res.get("parameters", {}).get(n)
+            p = res.parameters.get(n)
             if p is None:
                 row += f"{'not identified':>42}"
                 continue
             v, s = p["value"], p["std"]
             err = 100.0 * (v - truth[n]) / truth[n]
             scale = display_unit(n)[1]
-            cell = f"{v * scale:.4g} ± {s * scale:.2g}  ({err:+.2f} %)"
+            mark = " " if res.is_identified(n) else "*"
+            starred |= mark == "*"
+            cell = f"{v * scale:.4g} ± {s * scale:.2g}  ({err:+.2f} %){mark}"
             row += f"{cell:>42}"
-        lines.append(row)
+        lines.append(row.rstrip())
+    if starred:
+        lines.append("* fitted but not identified (held at its start, poorly constrained or flagged: "
+                     "labid identify says why)")
     return "\n".join(lines)
 
 
@@ -87,11 +94,11 @@ def _waves_only(out: Path, seed: int, step: Callable[[str], None], report: Calla
         raise UserError("the pitch-catch run gave no group velocity: "
                         + "; ".join(feats.get("analysis", {}).get("notes", [])))
     res = services.run_identification(feats, base_dir=out, src=str(feats_path))
-    services.store_result(run, "identification", res)
-    report(format_table({n: truth[n] for n in res["parameters"] if n in truth}, {"waves": res}))
-    errors = {n: (res["parameters"][n]["value"] - truth[n]) / truth[n] for n in res["parameters"] if n in truth}
-    return {"true": truth, "identified": res["parameters"], "relative_error": errors,
-            "converged": res["converged"], "max_abs_error": max(abs(e) for e in errors.values()),
+    services.store_result(run, "identification", res.to_dict(), by="labid demo")
+    report(format_table({n: truth[n] for n in res.parameters if n in truth}, {"waves": res}))
+    errors = {n: (res.parameters[n]["value"] - truth[n]) / truth[n] for n in res.parameters if n in truth}
+    return {"true": truth, "identified": res.parameters, "relative_error": errors,
+            "converged": res.converged, "max_abs_error": max(abs(e) for e in errors.values()),
             "points": {w["mode"]: len(w["frequency_hz"]) for w in curves},
             "files": {"run": str(run), "features": str(feats_path)}}
 
@@ -131,7 +138,7 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     step("3/6 identifying: modal only, waves only, combined")
     step("    start: datasheet values, not the simulated truth: "
          + ", ".join(f"{n} {_fmt(n, v)}" for n, v in DATASHEET_START.items()))
-    results: dict[str, dict] = {}
+    results: dict[str, services.Identification] = {}
     for ds in DATASETS:
         doc = services.select_data(features, ds)
         if ds != "combined" and not doc.get("modal" if ds == "modal" else "waves"):
@@ -141,9 +148,10 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
         # the combined result is the report's certificate: with its GUM budget (u_c, U at k = 2)
         results[ds] = res = services.run_identification(doc, base_dir=out, src=str(features_path), start=start,
                                                         budget=ds == "combined")
-        step(f"    {ds}: {'converged' if res['converged'] else 'NOT converged'} in {res['seconds']:.1f} s")
+        step(f"    {ds}: {'converged' if res.converged else 'NOT converged'} in {res.estimate['seconds']:.1f} s")
     for ds, res in results.items():
-        services.store_result(run, "identification" if ds == "combined" else f"identification_{ds}", res)
+        services.store_result(run, "identification" if ds == "combined" else f"identification_{ds}", res.to_dict(),
+                              by="labid demo")
 
     step("4/6 identified vs true constants")
     table = format_table(truth, results)
@@ -155,21 +163,21 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     gap = services.run_diagnosis(features, base_dir=out, src=str(features_path), start=DATASHEET_START,
                                  estimate=results.get("combined"))
     plot_gap(gap, out / "gap.png")
-    services.store_result(run, "diagnosis", gap)
+    services.store_result(run, "diagnosis", gap, by="labid demo")
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
     html = write_report(run, out / "report.html")
     waves_only = _waves_only(out, seed, step, report)
     step(f"done: {run}, {features_path}, {out / 'gap.png'}, {html}, {waves_only['files']['run']}")
 
-    errors = {ds: {n: (res["parameters"][n]["value"] - truth[n]) / truth[n]
-                   for n in res["parameters"] if n in truth}
+    errors = {ds: {n: (res.parameters[n]["value"] - truth[n]) / truth[n]
+                   for n in res.parameters if n in truth}
               for ds, res in results.items()}
     return {
         "start": dict(DATASHEET_START),
         "true": truth,
-        "identified": {ds: res["parameters"] for ds, res in results.items()},
+        "identified": {ds: res.parameters for ds, res in results.items()},
         "relative_error": errors,
-        "converged": {ds: res["converged"] for ds, res in results.items()},
+        "converged": {ds: res.converged for ds, res in results.items()},
         "gap": {k: gap[k] for k in ("gap", "where", "effects", "verdict")},
         "files": {"run": str(run), "features": str(features_path), "gap_figure": str(out / "gap.png"),
                   "report": str(html)},

@@ -13,20 +13,21 @@ The diagnosis starts from the estimate ``labid identify`` reports with the same
 its ``--json`` file instead of identifying again). The console shows the verdict, the gap
 before -> after, the top three candidates with magnitudes and units, the
 pairing findings, and where each output file went; progress goes to stderr.
+
+Every option and output path is checked before any computing; the result goes into the run
+the features came from beside the older ones (``--replace``: over the newest).
 """
 from __future__ import annotations
 
 import math
 import sys
-
-from engine.gap import GapOptions
+from pathlib import Path
 
 from .. import services
-from .options import add_json_option
-from ..workflows.diagnosis import load_features, plot_gap, run_diagnosis
 from ..base.errors import UserError
 from ..inputs.files import read_json_file
-from ..workflows.identification.estimation import parse_assignments
+from ..report.plots import check_format, plot_gap
+from .options import add_json_option, check_output_dir, check_output_file
 
 
 def register(sub) -> None:
@@ -45,6 +46,9 @@ def register(sub) -> None:
     p.add_argument("--estimate", metavar="IDENTIFY.json",
                    help="start from this labid identify --json result of the same features (and the same "
                         "--start/--prior) instead of identifying again")
+    p.add_argument("--replace", action="store_true",
+                   help="replace the newest diagnosis stored in the run file (default: keep it, the new one "
+                        "beside it)")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -74,30 +78,28 @@ def read_estimate(path: str, doc: dict, names) -> dict:
 def run(args) -> dict:
     if not 0.0 < args.alpha < 0.5:
         raise UserError(f"value {args.alpha!r}: expected a false-alarm rate in (0, 0.5)", key="--alpha")
-    names = None
-    if args.params:
-        names = tuple(n.strip() for n in args.params.split(",") if n.strip())
-        if not names:
-            raise UserError(f"value {args.params!r}: expected P1,P2,..", key="--params")
-    if args.prior is not None and not args.prior > 0:
-        raise UserError(f"value {args.prior!r}: expected a positive number", key="--prior")
-    start = parse_assignments(args.start, "--start")
-    doc, base = load_features(args.features)
+    names = services.parse_names(args.params, "--params")
+    services.check_prior(args.prior, "--prior")
+    start = services.parse_start(args.start, "--start")
+    check_output_file(args.json, "--json")
+    check_output_file(args.plot, "--plot")
+    if args.plot:
+        check_format(args.plot, "--plot")
+    check_output_dir(args.csv, "--csv")
+    doc = services.load_features_file(args.features)
     est = read_estimate(args.estimate, doc, names) if args.estimate else None
-    res = run_diagnosis(doc, base, args.features, GapOptions(alpha=args.alpha), names, start, args.prior,
-                        estimate=est)
+    res = services.run_diagnosis(doc, Path(args.features).parent, args.features, names=names, start=start,
+                                 prior=args.prior, estimate=est, alpha=args.alpha)
     out = sys.stdout if args.json != "-" else sys.stderr
     _print(res, out)
+    if note := services.store_for_features(args.features, "diagnosis", res, replace=args.replace,
+                                           by="labid diagnose"):
+        out.write(f"  {note}\n")
     if args.plot:
-        try:
-            plot_gap(res, args.plot)
-        except OSError as e:
-            raise UserError(f"cannot write: {e}", file=args.plot, key="--plot") from None
+        plot_gap(res, args.plot)
         out.write(f"  figure: {args.plot}\n")
     if args.json and args.json != "-":
         out.write(f"  result: {args.json}\n")
-    if note := services.store_for_features(args.features, "diagnosis", res):
-        out.write(f"  {note}\n")
     if args.csv:
         for f in services.write_result_tables(res, "diagnosis", args.csv):
             out.write(f"  table: {f}\n")

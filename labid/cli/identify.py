@@ -3,23 +3,25 @@
 The ``--json`` result has CONTRACT section 3 keys ``parameters`` ({name:
 {value, std}}, SI), ``converged`` and ``residual`` ({modal_rms_rel,
 waves_rms_rel}, null for absent data), plus ``correlation``,
-``identifiability``, ``warnings``, ``method`` and, with ``--starts N``, the
-multi-start study.
+``identifiability``, ``warnings``, ``method``, ``data`` (the kinds fitted), ``specimen``,
+``nominal``, ``uncertainty_budget`` and, with ``--starts N``, the multi-start study: the
+typed result ``labid.base.results.Identification`` the panel and the report read too.
+
+Every option and output path is checked before any fitting; the result goes into the run
+the features came from beside the older ones (``--replace``: over the newest).
 """
 from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
-from ..workflows import cluster
 from .. import services
-from ..workflows.budget import budget_text, identify_budget
-from .options import add_json_option
-from ..base.summary import display_unit
+from ..base import progress
 from ..base.errors import UserError
-from ..workflows.identification import (METHODS, distinct_minima, load_problem, minima_summary, multi_start,
-                                        load_features, parse_assignments, plot_multi_start, random_starts,
-                                        result_dict, run, start_values)
+from ..base.summary import budget_text, display_unit
+from ..report.plots import check_format, plot_multi_start
+from .options import add_json_option, check_output_dir, check_output_file
 
 
 def register(sub) -> None:
@@ -30,7 +32,7 @@ def register(sub) -> None:
                    help="constants to identify (E1 E2 nu12 G12 G13 G23 density, or E G nu density); "
                         "default: what the data can constrain")
     p.add_argument("--start", metavar="P=V,..", help="initial values in SI units (default: specimen nominal)")
-    p.add_argument("--method", choices=METHODS, default="lm",
+    p.add_argument("--method", choices=services.METHODS, default="lm",
                    help="lm: combined least squares (default); bayes: Lai & Ip update (Eq. 20); "
                         "nelder-mead: relative misfit (Eq. 29)")
     p.add_argument("--prior", type=float, default=None, metavar="S",
@@ -41,11 +43,14 @@ def register(sub) -> None:
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run --starts on a Dask distributed scheduler (pip install 'labid[cluster]'); "
                         "checked before any fitting")
-    p.add_argument("--plot", metavar="PATH", help="scatter plot of the multi-start study (PNG)")
+    p.add_argument("--plot", metavar="PATH", help="scatter plot of the multi-start study (PNG; needs --starts)")
     p.add_argument("--seed", type=int, default=0, help="random seed of --starts and --mcmc")
     p.add_argument("--mcmc", type=int, default=0, metavar="STEPS",
                    help="also sample the full posterior by MCMC (emcee) with STEPS steps per walker")
     p.add_argument("--csv", metavar="DIR", help="also write the constants as DIR/constants.csv")
+    p.add_argument("--replace", action="store_true",
+                   help="replace the newest identification stored in the run file (default: keep it, "
+                        "the new one beside it)")
     p.add_argument("--strict", action="store_true",
                    help="exit 3 (after writing the outputs) when the fit is inconsistent with its data "
                         "(chi^2 p-value < 1e-3)")
@@ -53,103 +58,120 @@ def register(sub) -> None:
     p.set_defaults(func=_run)
 
 
+def check_options(args: argparse.Namespace) -> tuple:
+    """Every option and output path, checked before anything is computed: (names, start)."""
+    names = services.parse_names(args.params, "--params")
+    start = services.parse_start(args.start, "--start")
+    services.check_prior(args.prior, "--prior")
+    if args.starts < 0 or args.workers < 1:
+        raise UserError("expected --starts >= 0 and --workers >= 1", key="--starts")
+    if args.mcmc and args.mcmc < 10:
+        raise UserError(f"value {args.mcmc}: expected at least 10 steps", key="--mcmc")
+    if args.plot and not args.starts:
+        raise UserError("draws the multi-start study; expected --starts N as well", key="--plot")
+    check_output_file(args.json, "--json")
+    check_output_file(args.plot, "--plot")
+    if args.plot:
+        check_format(args.plot, "--plot")
+    check_output_dir(args.csv, "--csv")
+    return names, start
+
+
 def _run(args: argparse.Namespace) -> dict:
-    client = cluster.connect(args.scheduler, args.starts)   # before any fitting (issue 16)
+    names, start = check_options(args)
+    client = services.connect_scheduler(args.scheduler, args.starts)   # before any fitting (issue 16)
     try:
-        return _identify(args, client)
+        return _identify(args, services.load_features_file(args.features), names, start, client)
     finally:
         if client is not None:
             client.close()
 
 
-def _identify(args: argparse.Namespace, client) -> dict:
-    problem = load_problem(args.features)
-    names = None
-    if args.params:
-        names = tuple(n.strip() for n in args.params.split(",") if n.strip())
-        if not names:
-            raise UserError(f"value {args.params!r}: expected P1,P2,..", key="--params")
-    start = parse_assignments(args.start, "--start")
-    if args.prior is not None and not args.prior > 0:
-        raise UserError(f"value {args.prior!r}: expected a positive number", key="--prior")
-    if args.starts < 0 or args.workers < 1:
-        raise UserError("expected --starts >= 0 and --workers >= 1", key="--starts")
-    est = run(problem, names, start, method=args.method, prior=args.prior)
-    out = result_dict(est)
-    out["data"] = list(problem.kinds)
-    if args.mcmc:
-        if args.mcmc < 10:
-            raise UserError(f"value {args.mcmc}: expected at least 10 steps", key="--mcmc")
-        from engine.fit import sample_posterior  # noqa: PLC0415
-        prior = args.prior if args.method == "lm" else None
-        out["posterior"] = sample_posterior(problem.blocks, est, prior=prior, n_steps=args.mcmc,
-                                            seed=args.seed).to_dict()
-    out["specimen"] = problem.specimen.name
-    if args.starts:
-        st0 = start_values(problem, est.names, {k: v for k, v in start.items() if k in est.names})
-        starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
-        doc = load_features(args.features)
-        executor = client.get_executor() if client is not None else None
-        results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
-                              prior=args.prior, executor=executor, max_workers=args.workers)
-        out["multi_start"] = results
-        out["multi_start_minima"] = distinct_minima(results, est.names)
-        if args.plot:
-            plot_multi_start(results, est.names, args.plot, title=problem.specimen.name)
-    if args.json != "-":
-        _print(out, est.names)
-    # issue 16 (helper s6): the GUM uncertainty budget (JSON uncertainty_budget, console table)
-    out["uncertainty_budget"] = identify_budget(problem, est, args.features)
-    if args.json != "-":
-        sys.stdout.write(budget_text(out["uncertainty_budget"]))
-    if args.strict and not out["fit"]["consistent"]:
+def _identify(args: argparse.Namespace, doc: dict, names, start, client) -> dict:
+    res = services.run_identification(
+        doc, base_dir=Path(args.features).parent, src=args.features, names=names, start=start, method=args.method,
+        prior=args.prior, n_starts=args.starts, seed=args.seed, workers=args.workers,
+        executor=client.get_executor() if client is not None else None, mcmc=args.mcmc, budget=True,
+        progress=_progress())
+    out = res.to_dict()
+    console = args.json != "-"
+    if console:
+        sys.stdout.write(summary(res))
+        if res.budget is not None:
+            sys.stdout.write(budget_text(res.budget))
+    if res.budget_error:
+        sys.stderr.write(f"labid identify: no uncertainty budget: {res.budget_error}\n")
+    if args.strict and not res.fit.get("consistent"):
         args.exit_code = 3
-    if note := services.store_for_features(args.features, "identification", out):
+    if note := services.store_for_features(args.features, "identification", out, replace=args.replace,
+                                           by="labid identify"):
         sys.stderr.write(f"labid identify: {note}\n")
     if args.csv:
         for f in services.write_result_tables(out, "identification", args.csv):
             sys.stderr.write(f"labid identify: wrote {f}\n")
+    if args.plot and res.multi_start:
+        plot_multi_start(list(res.multi_start), res.names, args.plot, title=res.specimen)
     return out
 
 
-def _print(out: dict, names) -> None:
-    w = sys.stdout.write
-    fit = out["fit"]
-    if not fit["consistent"] and fit.get("unexplained_peaks"):
-        w(f"INCONSISTENT FIT: {fit['unexplained_peaks']} of {len(out.get('pairing') or [])} peaks match no "
-          "predicted mode: the constants below are NOT identified (labid diagnose looks for the cause)\n")
-    elif not fit["consistent"]:
-        w(f"INCONSISTENT FIT: chi^2/nu = {fit['chi2_per_dof']:.3g} (p = {fit['p_value']:.2g}): the constants "
-          "below are NOT identified\n")
-    elif not fit["identified"]:
-        w(f"fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g}); not identified: "
-          + ", ".join(out["identifiability"]["poorly_identified"]) + "\n")
+def _progress():
+    """Model evaluations and multi-start starts on stderr (``labid.base.progress``; silent
+    under ``--quiet`` or when stderr is not a terminal)."""
+    if not progress.enabled():
+        return None
+    bars: dict = {}
+
+    def report(item) -> None:
+        if item[0] == "eval":
+            bars.setdefault("eval", progress.bar(None, "identify: model evaluations", unit="eval")).update(1)
+        elif item[0] == "start":
+            bars.setdefault("start", progress.bar(item[2], "multi-start", unit="start")).update(1)
+        elif item[0] == "budget":
+            for b in bars.values():
+                b.close()
+            progress.note("identify: GUM uncertainty budget (sensitivities to the type-B inputs)")
+    return report
+
+
+def summary(res: services.Identification) -> str:
+    """The console summary: the verdict first, then per constant value +- std and, when not
+    identified, why (``Identification.status``: the one definition), residuals, notes."""
+    lines = []
+    fit, out = res.fit, res.estimate
+    if not fit.get("consistent") and fit.get("unexplained_peaks"):
+        lines.append(f"INCONSISTENT FIT: {fit['unexplained_peaks']} of {len(res.pairing or [])} peaks match no "
+                     "predicted mode: the constants below are NOT identified (labid diagnose looks for the cause)")
+    elif not fit.get("consistent"):
+        lines.append(f"INCONSISTENT FIT: chi^2/nu = {fit.get('chi2_per_dof', float('nan')):.3g} "
+                     f"(p = {fit.get('p_value', float('nan')):.2g}): the constants below are NOT identified")
+    elif not res.identified:
+        lines.append(f"fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g}); "
+                     "not identified: " + ", ".join(n for n in res.names if not res.is_identified(n)))
     else:
-        w(f"identified: fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g})\n")
-    w(f"{out['specimen']}: data {'+'.join(out['data'])}, method {out['method']}, "
-      f"{'converged' if out['converged'] else 'NOT converged'} in {out['iterations']} iterations\n")
-    ident = out["identifiability"]["parameters"]
-    for n in names:
-        v, s = out["parameters"][n]["value"], out["parameters"][n]["std"]
+        lines.append(f"identified: fit consistent (chi^2/nu = {fit['chi2_per_dof']:.3g}, p = {fit['p_value']:.2g})")
+    lines.append(f"{res.specimen}: data {'+'.join(res.data)}, method {out.get('method')}, "
+                 f"{'converged' if res.converged else 'NOT converged'} in {out.get('iterations')} iterations")
+    ident = (out.get("identifiability") or {}).get("parameters") or {}
+    for n, p in res.parameters.items():
+        v, s = p["value"], p["std"]
         unit, sc = display_unit(n)
         unit = f" {unit}" if unit else ""
-        flag = "" if ident[n]["identified"] else (
-            f"   (not identified: {ident[n].get('reason', 'poorly identified')})" if n in out.get("held", {})
-            else f"   (not identified: {ident[n].get('reason', 'poorly identified')}; "
-                 f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
-        w(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}\n")
-
-    r = out["residual"]
-    w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
-    for msg in out["warnings"]:
-        w(f"  note: {msg}\n")
-    if "posterior" in out:
-        ps = out["posterior"]
-        w(f"  MCMC posterior ({ps['n_samples']} samples, acceptance {ps['acceptance']:.2f}): "
-          + ", ".join(f"{n} std {ps['std'][n]:.3g}" for n in ps["names"]) + "\n")
-    if "multi_start" in out:
-        ok = sum(1 for m in out["multi_start"] if m.get("converged"))
-        w(f"  {minima_summary(out['multi_start_minima'], len(out['multi_start']))} ({ok} converged)\n")
-        for k, m in enumerate(out["multi_start_minima"][:4]):
-            w(f"    minimum {k + 1}: " + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
-              + f"; chi^2/n {m['chi2_per_point']:.3g}; {m['n_starts']} start(s)\n")
+        ok, why = res.status(n)
+        flag = "" if ok else (f"   (not identified: {why})" if n in res.held or n not in ident else
+                              f"   (not identified: {why}; "
+                              f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
+        lines.append(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}")
+    r = out.get("residual") or {}
+    lines.append("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None))
+    lines += [f"  note: {msg}" for msg in res.warnings]
+    if res.posterior is not None:
+        ps = res.posterior
+        lines.append(f"  MCMC posterior ({ps['n_samples']} samples, acceptance {ps['acceptance']:.2f}): "
+                     + ", ".join(f"{n} std {ps['std'][n]:.3g}" for n in ps["names"]))
+    if res.multi_start:
+        ok = sum(1 for m in res.multi_start if m.get("converged"))
+        lines.append(f"  {services.minima_summary(res.multi_start_minima, len(res.multi_start))} ({ok} converged)")
+        for k, m in enumerate(res.multi_start_minima[:4]):
+            lines.append(f"    minimum {k + 1}: " + ", ".join(f"{n} {v:.4g}" for n, v in m["values"].items())
+                         + f"; chi^2/n {m['chi2_per_point']:.3g}; {m['n_starts']} start(s)")
+    return "\n".join(lines) + "\n"

@@ -2,17 +2,18 @@
 the GUM uncertainty budget, convergence history, multi-start scatter and the
 identifiability view.
 
-The work is ``labid.services.run_identification`` (the workflow of ``labid
-identify``, with a multi-start study) in a background job: it reports each
-model evaluation and stops at the next one when cancelled; then the GUM budget
-(``services.run_identification(budget=True)``, as ``labid identify`` prints it) in the same job. A stored
-result shows the ``uncertainty_budget`` it holds: per constant u_c and U (k = 2) and
-the standard uncertainty each input contributes (its share of u_c² in the tooltip).
+The work is ``labid.services.run_identification`` (the one flow of ``labid identify``, with
+a multi-start study) in a background job: it reports each model evaluation and stops at the
+next one when cancelled; then the GUM budget (``budget=True``, as ``labid identify`` prints
+it) in the same job. Results are read and shown as the typed
+``labid.services.Identification`` the command line stores too (data kinds, "identified"
+by its one definition); a stored result shows the ``uncertainty_budget`` it holds: per
+constant u_c and U (k = 2) and the standard uncertainty each input contributes (its share
+of u_c² in the tooltip).
 """
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pyqtgraph as pg
@@ -25,7 +26,6 @@ from pathlib import Path
 
 from .. import services
 from ..base.errors import Cancelled, UserError
-from ..workflows.identification.estimation import default_params
 from ..base.summary import display_unit
 from .budget_view import BudgetView
 from .common import Banner, empty_note, plot
@@ -42,26 +42,6 @@ def _num(v, default: float = math.nan) -> float:
     except (TypeError, ValueError):
         return default
     return x
-
-
-def _data_of(out: dict) -> str:
-    """'modal', 'waves' or 'combined' from the blocks of a result that does not say (CLI)."""
-    kinds = {str(k).split("[")[0].split(":")[0] for k in (out.get("blocks") or {})}
-    kinds = {"waves" if k.startswith("wave") else k for k in kinds}
-    return "combined" if {"modal", "waves"} <= kinds else (next(iter(kinds)) if len(kinds) == 1 else "?")
-
-
-def default_names(doc: dict, isotropic: bool) -> tuple[str, ...]:
-    """The constants ``labid identify`` fits by default for features ``doc`` (the CLI's
-    own rule, ``estimation.default_params``, asked without building the FE model)."""
-    waves = doc.get("waves") or []
-    waves = [waves] if isinstance(waves, dict) else waves
-    blocks = [SimpleNamespace(kind="modal", name="modal")] if doc.get("modal") else []
-    blocks += [SimpleNamespace(kind="waves", name=f"waves[{i}]:{w.get('mode', 'A0')}")
-               for i, w in enumerate(waves) if isinstance(w, dict)]
-    shape = SimpleNamespace(isotropic=isotropic, blocks=blocks,
-                            kinds=tuple(sorted({b.kind for b in blocks})))
-    return tuple(default_params(shape))
 
 
 class IdentificationView(QWidget):
@@ -250,7 +230,7 @@ class IdentificationView(QWidget):
                 names = tuple(mat.param_names)
                 # the constants of the stored identification (CLI or panel), else the CLI's default
                 stored = tuple((st or {}).get("parameters") or ()) if isinstance(st, dict) else ()
-                self._set_params(names, stored or default_names(doc, mat.isotropic))
+                self._set_params(names, stored or services.default_params_for(doc, mat.isotropic))
             except (UserError, StopIteration, AttributeError):
                 pass
         if st and self.job is None:
@@ -299,12 +279,12 @@ class IdentificationView(QWidget):
         base_dir = self.features_dir if self.features_file_doc is not None else "."
 
         def work(progress, should_stop):
-            out = services.run_identification(doc, specimen=spec, base_dir=base_dir, names=names, start=start,
-                                              method=method, n_starts=n_starts, data=data, progress=progress,
+            res = services.run_identification(doc, specimen=spec, base_dir=base_dir, names=names, start=start,
+                                              method=method, n_starts=n_starts, progress=progress,
                                               should_stop=should_stop, budget=True)
             if should_stop():
                 raise Cancelled()
-            return out
+            return res.to_dict()
 
         self.job = self.main.start_job("identification", work, self._done, on_progress=self._progress,
                                        on_failed=self._failed)
@@ -348,9 +328,12 @@ class IdentificationView(QWidget):
 
     # -- display -----------------------------------------------------------------------------
     def show_result(self, out: dict) -> None:
+        """Show a stored or fresh identification (its dict; read as ``services.Identification``)."""
         self.result = out
-        params = out.get("parameters") or {}
-        nominal = out.get("nominal") or self._specimen_nominal()
+        ident = services.identification_of(out) or services.Identification({})
+        out = ident.estimate
+        params = ident.parameters
+        nominal = dict(ident.nominal) or self._specimen_nominal()
         for w in (self.history_plot, self.ident_plot):
             w.enableAutoRange()
         idp = (out.get("identifiability") or {}).get("parameters") or {}
@@ -358,22 +341,24 @@ class IdentificationView(QWidget):
         for i, (n, p) in enumerate(params.items()):
             unit, sc = display_unit(n)
             v, s = _num(p.get("value")), _num(p.get("std"))
+            ok, why = ident.status(n)
             cells = [n, f"{v * sc:.4g} ± {s * sc:.2g} {unit}", f"{100 * s / abs(v):.2g} %" if v and math.isfinite(v) else "—",
-                     f"{_num(nominal[n]) * sc:.4g}" if n in nominal else "—",
-                     "yes" if (idp.get(n) or {}).get("identified") else "no"]
+                     f"{_num(nominal[n]) * sc:.4g}" if n in nominal else "—", "yes" if ok else "no"]
             for j, c in enumerate(cells):
                 item = QTableWidgetItem(c)
                 item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+                if j == 4 and not ok:
+                    item.setToolTip(why)
                 self.table.setItem(i, j, item)
-        self.show_pairing(out.get("pairing"))
-        self.budget_box.show_budget(out.get("uncertainty_budget"), list(params), out.get("uncertainty_budget_error"))
+        self.show_pairing(ident.pairing)
+        self.budget_box.show_budget(ident.budget, list(params), ident.budget_error)
         has_budget = self.budget_table.rowCount() > 0
-        self.lower_tabs.setCurrentWidget(self.budget_box if has_budget or not out.get("multi_start")
+        self.lower_tabs.setCurrentWidget(self.budget_box if has_budget or not ident.multi_start
                                          else self.multi_plot)
         res = out.get("residual") or {}
         rs = ", ".join(f"{k} {v:.2e}" for k, v in res.items() if isinstance(v, (int, float)))
-        self.summary.setText(f"data {out.get('data') or _data_of(out)} · method {out.get('method', '?')} · "
-                             f"converged {bool(out.get('converged'))} · residual {rs or '—'}")
+        self.summary.setText(f"data {ident.data_set} · method {out.get('method', '?')} · "
+                             f"converged {ident.converged} · residual {rs or '—'}")
         # convergence history
         self.history_plot.clear()
         hist = out.get("history") or []
@@ -388,7 +373,7 @@ class IdentificationView(QWidget):
                                    symbolBrush="#1f77b4", connect=conn)
         # multi-start scatter
         self.multi_plot.clear()
-        runs = out.get("multi_start") or []
+        runs = list(ident.multi_start)
         names = list(params)
         if not runs:
             self.multi_plot.setXRange(0, 1)

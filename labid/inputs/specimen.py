@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
@@ -66,13 +66,15 @@ def _bounded(v: float, kind: str, key: str, src: str, what: str) -> float:
 
 @dataclass(frozen=True)
 class Specimen:
-    """A rectangular plate: name, in-plane size (m) and laminate."""
+    """A rectangular plate: name, in-plane size (m) and laminate; ``uncertainty``: its
+    ``[uncertainty]`` table as written (standard uncertainties, SI; checked)."""
 
     name: str
     length: float
     width: float
     laminate: Laminate
     source: str = "<inline>"
+    uncertainty: Mapping[str, float] = field(default_factory=dict, compare=False, hash=False)
 
     @property
     def mass(self) -> float:
@@ -230,7 +232,7 @@ def specimen_from_dict(doc: Mapping[str, Any], src: str = "<inline>") -> Specime
     if not lam.thickness < min(length, width):
         raise UserError(f"thickness {lam.thickness:g} m: expected a plate thinner than its sides "
                         f"({min(length, width):g} m)", file=src, key="layup")
-    return Specimen(name, length, width, lam, src)
+    return Specimen(name, length, width, lam, src, dict(doc.get("uncertainty") or {}))
 
 
 def load_specimen(path: str | Path) -> Specimen:

@@ -47,6 +47,7 @@ import numpy as np
 from ..base.errors import UserError
 from ..inputs.rig import rig_from_text
 from ..inputs.units import loss_factors
+from ..base.results import Identification
 from ..base.summary import unit_of
 from ..store import RunStore, decode_result, software_version
 
@@ -269,14 +270,16 @@ def feature_tables(features: Mapping, csv_dir: str | Path) -> list[str]:
 
 
 def constants_rows(result: Mapping, name: str = "identification") -> list[list[Any]]:
-    """Rows of constants.csv for one identification result."""
+    """Rows of constants.csv for one identification result (``identified``: the one
+    definition, ``labid.base.results.Identification.status``)."""
+    typed = Identification.from_dict(result)
     ident = ((result.get("identifiability") or {}).get("parameters")) or {}
     rows = []
-    for p, v in (result.get("parameters") or {}).items():
+    for p, v in typed.parameters.items():
         val, std = v.get("value"), v.get("std")
         info = ident.get(p) or {}
         rel = info.get("rel_std", (std / abs(val)) if val and std is not None else None)
-        rows.append([name, p, val, std, unit_of(p, plain=True), rel, info.get("identified"),
+        rows.append([name, p, val, std, unit_of(p, plain=True), rel, typed.is_identified(p),
                      "+".join(info.get("constrained_by") or [])])
     return rows
 

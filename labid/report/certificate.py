@@ -227,25 +227,35 @@ def budget_html(budget: Any, params: dict) -> str:
             "[uncertainty] inputs; standard uncertainty contributed by each source):</p>" + _table(rows, ["source"] + names))
 
 
+def certified(ident: Any) -> str:
+    """Which kept identification the report certifies (``services.store_result``: number, time, writer)."""
+    st = ident.stored or {}
+    what = " ".join(x for x in (f"no. {st.get('number', '?')}", st.get("time"), st.get("by")) if x)
+    return f"<p>Identification certified: {html.escape(what)}, data {html.escape(ident.data_set)}.</p>"
+
+
 def section_constants(rd: RunData, appendix: list) -> str:
-    ident = lookup(rd.results, IDENT_GROUPS)
-    params = ident.get("parameters") if isinstance(ident, dict) else None
-    if not isinstance(params, dict) or not params:
+    ident = services.identification_of(lookup(rd.results, IDENT_GROUPS))
+    params = ident.parameters if ident is not None else None
+    if not params:
         return _note("no identification in this run (run labid identify, or Identify in the panel)")
     nominal = _nominal(rd)
-    held = ident.get("held") or {}
     rows = []
     for n, p in params.items():
         if not isinstance(p, dict):
             continue
+        ok, why = ident.status(n)        # the one definition of "identified" (a held constant: no)
+        nom = _param(n, float(nominal[n])) if isinstance(nominal.get(n), (int, float)) else "—"
         v, u, U, rel = constant_cells(n, p.get("value"), p.get("std"), K)
-        nom = nominal.get(n)
-        rows.append([html.escape(n), f"<b>{v}</b>", u, f"<b>{U}</b>", rel,
-                     _param(n, float(nom)) if isinstance(nom, (int, float)) else "—"])
-    for n, val in (held.items() if isinstance(held, dict) else []):
-        rows.append([html.escape(n), _param(n, val.get("value") if isinstance(val, dict) else val),
-                     "held", "—", "—", "—"])
-    out = _table(rows, ["constant", "value", "u (std)", f"U (k={K:g})", "U / value", "nominal (specimen file)"])
+        rows.append([html.escape(n), f"<b>{v}</b>" if ok else v, u, f"<b>{U}</b>" if ok else U, rel, nom,
+                     "yes" if ok else f"no: {html.escape(why)}"])
+    for n, val in ((n, v) for n, v in ident.held.items() if n not in params):   # older results
+        rows.append([html.escape(n), _param(n, val.get("value") if isinstance(val, dict) else val), "held",
+                     "—", "—", "—", "no: held at its start"])
+    out = certified(ident)
+    out += _table(rows, ["constant", "value", "u (std)", f"U (k={K:g})", "U / value", "nominal (specimen file)",
+                         "identified"])
+    ident = ident.to_dict()
     out += uncertainty_statement(ident)
     fit = ident.get("fit")
     if isinstance(fit, dict):
@@ -267,24 +277,26 @@ def section_constants(rd: RunData, appendix: list) -> str:
             for f in list(flags) + warns) + "</ul>"
     out += budget_html(ident.get("uncertainty_budget"), params)
     # other data sets identified separately (identification_<data>): appendix
-    others = {k[len("identification_"):]: v for k, v in sorted(rd.results.items())
-              if k.startswith("identification_") and isinstance(v, dict) and isinstance(v.get("parameters"), dict)}
+    others = {k[len("identification_"):]: services.identification_of(v) for k, v in sorted(rd.results.items())
+              if k.startswith("identification_") and services.identification_of(v) is not None}
     if others:
-        sets = {"combined" if not ident.get("data") else str(ident.get("data")): params}
-        sets.update({k: v["parameters"] for k, v in others.items()})
-        names = list(dict.fromkeys(n for ps in sets.values() for n in ps))
+        first = services.identification_of(ident)
+        sets = {first.data_set if first.data else "combined": first}
+        sets.update(others)
+        names = list(dict.fromkeys(n for r in sets.values() for n in r.parameters))
         cells = []
         for n in names:
             row = [html.escape(n)]
-            for ps in sets.values():
-                p = ps.get(n)
+            for r in sets.values():
+                p = r.parameters.get(n)
                 row.append("—" if not isinstance(p, dict) else
-                           f"{_param(n, p.get('value'))} ± {constant_cells(n, p.get('value'), p.get('std'))[1]}")
+                           f"{_param(n, p.get('value'))} ± {constant_cells(n, p.get('value'), p.get('std'))[1]}"
+                           + ("" if r.is_identified(n) else " *"))
             nom = nominal.get(n)
             row.append(_param(n, float(nom)) if isinstance(nom, (int, float)) else "—")
             cells.append(row)
         appendix.append(("Constants by data set", "<p>By data set (value ± u):</p>" + _table(
-            cells, ["constant"] + [f"{k} data" for k in sets] + ["nominal"])))
+            cells, ["constant"] + [f"{k} data" for k in sets] + ["nominal"]) + "<p>* fitted, not identified.</p>"))
         out += f"<p>The constants identified from each data set alone: Appendix {_letter(len(appendix))}.</p>"
     return out
 
@@ -433,9 +445,16 @@ def header_block(rd: RunData, run: str | Path, fields: dict) -> str:
     return f"<table class='cert'>{cells}</table>{note}"
 
 
-def build_report(run: str | Path) -> str:
-    """The HTML text of the report of run file ``run``."""
+def build_report(run: str | Path, identification: int | None = None) -> str:
+    """The HTML text of the report of run file ``run``; ``identification``: the number of the
+    kept identification it certifies (default: the newest)."""
     rd = services.open_run(run, max_shots=20)
+    if identification is not None and not isinstance(
+            chosen := services.read_result(run, "identification", identification), dict):
+        kept = [r["number"] for r in services.result_history(run, "identification")]
+        raise UserError(f"no identification no. {identification}; kept: {kept}", file=str(run), key="--identification")
+    if identification is not None:
+        rd.results["identification"] = chosen
     feats = features_of(rd)
     fields = report_fields(rd)
     ident = lookup(rd.results, IDENT_GROUPS)
@@ -470,9 +489,10 @@ def build_report(run: str | Path) -> str:
             f"</title><style>{CSS}</style></head><body>{''.join(parts)}</body></html>\n")
 
 
-def write_report(run: str | Path, out: str | Path | None = None) -> str:
-    """Write the report of ``run`` to ``out`` (default: RUN.html next to it); returns the path."""
+def write_report(run: str | Path, out: str | Path | None = None, identification: int | None = None) -> str:
+    """Write the report of ``run`` to ``out`` (default: RUN.html next to it); returns the path.
+    ``identification``: the kept identification it certifies (default: the newest)."""
     out = Path(out) if out else Path(run).with_suffix(".html")
-    text = build_report(run)
+    text = build_report(run, identification)
     atomic.write_text(out, text, key="--out")    # temp + rename (issue 15)
     return str(out)

@@ -1,4 +1,5 @@
-"""The figures of the test report (``labid.report.certificate``): matplotlib (Agg) PNGs as base64 text.
+"""The figures of the test report (``labid.report.certificate``): matplotlib PNGs as base64 text,
+drawn through ``labid.report.plots.pyplot`` (the one matplotlib set-up).
 
 ``fig_spectrum``, ``fig_scalogram``, ``fig_dispersion``, ``fig_gap`` each return the
 base64 PNG of one figure, or None when the run lacks its data; ``img`` wraps one in an
@@ -19,6 +20,7 @@ import numpy as np
 from .. import services
 from ..services import IDENT_GROUPS, RunData, lookup
 from ..inputs.specimen import specimen_from_dict
+from .plots import gap_figure, pyplot
 
 
 def waves_list(w: Any) -> list[dict]:
@@ -31,21 +33,12 @@ def waves_list(w: Any) -> list[dict]:
 def fig_png(fig) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt_agg().close(fig)
+    pyplot().close(fig)
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def img(b64: str, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
-
-
-def plt_agg():
-    """pyplot on the Agg backend, imported when the first figure is drawn: the panel imports
-    this module at start and does not pay matplotlib's 0.3 s until a report is written."""
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-    return plt
 
 
 def fig_spectrum(rd: RunData, feats: dict) -> str | None:
@@ -61,7 +54,7 @@ def fig_spectrum(rd: RunData, feats: dict) -> str | None:
             return None
         f, y, kind = got
         label = f"summed normalised {'|H1|²' if kind == 'frf' else 'auto-spectra'} of {len(rd.hammer)} hits"
-    plt = plt_agg()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 3.6))
     ax.semilogy(f[1:], y[1:], lw=0.8, color="#1f77b4", label=label)
     picks = np.asarray((feats.get("modal") or {}).get("frequencies_hz", []), float)
@@ -94,7 +87,7 @@ def fig_scalogram(rd: RunData, feats: dict) -> str | None:
     an = rd.results.get("analysis")
     sc = services.scalogram(rec, name, an if isinstance(an, dict) else None, n_freqs=80)
     t, freqs, Wm = sc.times_s, sc.frequencies_hz, sc.magnitude
-    plt = plt_agg()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 3.6))
     ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
     if isinstance(ridge, dict) and "times_s" in ridge:
@@ -111,7 +104,7 @@ def fig_dispersion(rd: RunData, feats: dict) -> str | None:
     ws = waves_list(feats.get("waves"))
     if not ws:
         return None
-    plt = plt_agg()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 3.6))
     for w in ws:
         f = np.asarray(w.get("frequency_hz", []), float)
@@ -153,22 +146,9 @@ def laminate_of(rd: RunData):
 
 
 def fig_gap(gap: dict) -> str | None:
-    effects = [e for e in (gap.get("effects") or []) if isinstance(e, dict)]
-    g = gap.get("gap") or {}
-    if not effects:
-        return None
-    plt = plt_agg()
-    fig, ax = plt.subplots(figsize=(9, 3.0))
-    names = [str(e.get("name")) for e in effects]
-    after = [float(e.get("gap_after", np.nan)) for e in effects]
-    ax.barh(names[::-1], after[::-1], color="#9ecae1", label="gap after modelling the effect")
-    before = scalar(g.get("before"))
-    if before is not None:
-        ax.axvline(before, color="#d62728", ls="--", label="gap before")
-    ax.set_xlabel(f"gap ({g.get('unit') or 'rms of residual/σ'})")
-    # legend below the axes: never over a bar
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.28), ncol=2, frameon=False)
-    return fig_png(fig)
+    """The diagnosis' figure (``labid.report.plots.gap_figure``, as ``labid diagnose --plot``)."""
+    fig = gap_figure(gap)
+    return None if fig is None else fig_png(fig)
 
 
 def scalar(v: Any) -> float | None:

@@ -15,19 +15,15 @@ Absent keys take :data:`DEFAULTS` (docs/uncertainty.md). With ``mass`` the densi
 an input: it follows from the mass and the dimensions, rho = m / (L W h), so a thickness
 error also moves the density (E ~ h^-3 instead of h^-2 for a thin plate).
 
-:func:`identify_budget` finite-differences the forward model of the fitted problem in
+:func:`budget_of_problem` finite-differences the forward model of the fitted problem in
 each input (central differences, relative step :data:`REL_STEP`) at the estimate and
 hands the changes to :func:`engine.fit.budget.gum_budget` (dp/dx = -J^+ dr/dx).
-:func:`budget_text` is the console table. Units SI.
+Its console table: ``labid.base.summary.budget_text``. Units SI.
 """
 from __future__ import annotations
 
-import math
-
-import tomllib
-from importlib import resources
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -38,13 +34,10 @@ from engine.plate import Mesh, PlateModel
 
 from ..base.errors import UserError
 from .identification.estimation import Problem, problem_from_features
-from ..inputs.features import read_features
 from ..inputs.keys import check_keys
-from ..inputs.specimen import BUILTIN, Specimen
-from ..base.summary import display_unit
+from ..inputs.specimen import Specimen
 
-__all__ = ["DEFAULTS", "KEYS", "REL_STEP", "uncertainty_table", "budget_inputs", "identify_budget",
-           "budget_of_problem", "budget_text"]
+__all__ = ["DEFAULTS", "KEYS", "REL_STEP", "uncertainty_table", "budget_inputs", "budget_of_problem"]
 
 #: keys of ``[uncertainty]`` and their units
 KEYS = {"thickness": "m", "length": "m", "width": "m", "density": "kg/m^3", "mass": "kg",
@@ -60,27 +53,10 @@ POS_STEP = 1e-3
 
 
 # --------------------------------------------------------------------------- the table
-def _specimen_doc(doc: Mapping, base_dir: str | Path, src: str) -> Mapping:
-    s = doc.get("specimen")
-    if isinstance(s, Mapping):
-        return s
-    if not isinstance(s, str):
-        return {}
-    if s in BUILTIN:
-        return tomllib.loads(resources.files("labid.data").joinpath(BUILTIN[s]).read_text())
-    p = Path(s) if Path(s).is_absolute() else Path(base_dir) / s
-    try:
-        return tomllib.loads(p.read_text())
-    except (OSError, tomllib.TOMLDecodeError) as e:
-        raise UserError(f"cannot read the specimen for its [uncertainty] table ({e})", file=str(p)) from None
-
-
-def uncertainty_table(doc: Mapping, spec: Specimen, base_dir: str | Path = ".", src: str = "<features>"
-                      ) -> dict[str, tuple[float, str]]:
-    """``{key: (standard uncertainty in SI, 'specimen' | 'default')}`` of the specimen a
-    features document names (inline table, path relative to ``base_dir`` or built-in)."""
-    sdoc = _specimen_doc(doc, base_dir, src)
-    tab = sdoc.get("uncertainty", {})
+def uncertainty_table(spec: Specimen, src: str = "<features>") -> dict[str, tuple[float, str]]:
+    """``{key: (standard uncertainty in SI, 'specimen' | 'default')}`` of the specimen
+    ``spec`` (its ``[uncertainty]`` table, read with it: ``Specimen.uncertainty``)."""
+    tab = spec.uncertainty
     where = spec.source if spec.source else src
     if not isinstance(tab, Mapping):
         raise UserError("expected a table [uncertainty] of standard uncertainties in SI units",
@@ -226,34 +202,6 @@ def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[
 # --------------------------------------------------------------------------- entry points
 def budget_of_problem(problem: Problem, est: Estimate, doc: Mapping, base_dir: str | Path = ".") -> dict:
     """The ``uncertainty_budget`` JSON of ``est`` fitted on ``problem`` (from features ``doc``)."""
-    table = uncertainty_table(doc, problem.specimen, base_dir, problem.source)
+    table = uncertainty_table(problem.specimen, problem.source)
     inputs, notes = budget_inputs(problem, est, doc, table)
     return gum_budget(problem.blocks, est, inputs, notes=notes).to_dict()
-
-
-def identify_budget(problem: Problem, est: Estimate, features_path: str | Path) -> dict:
-    """The ``uncertainty_budget`` of ``labid identify FEATURES.json`` (specimen path relative to it)."""
-    p = Path(features_path)
-    return budget_of_problem(problem, est, read_features(p), p.parent)
-
-
-def budget_text(b: Mapping[str, Any]) -> str:
-    """Console table: per constant U (k, coverage), u_c, and each input's contribution."""
-    lines = [f"  uncertainty budget (GUM): expanded U = k u_c, coverage {b['coverage']}:"]
-    for n, c in b["constants"].items():
-        unit, sc = display_unit(n)
-        unit = f" {unit}" if unit else ""
-        rel = f" ({100 * c['U_rel']:.2g} %)" if c.get("U_rel") is not None else ""
-        lines.append(f"  {n:>7} = {c['value'] * sc:10.4g} +- {c['U'] * sc:.3g}{unit}{rel}  "
-                     f"[u_c {c['u_combined'] * sc:.3g}: type A {c['u_type_a'] * sc:.3g}, type B {c['u_type_b'] * sc:.3g}]")
-        if not math.isfinite(c["u_combined"]):
-            lines.append("           no budget: the fit does not determine this constant (infinite type-A std)")
-            continue
-        rows = sorted(c["contributions"].items(), key=lambda kv: -kv[1]["u"])
-        lines.append("           " + ", ".join(f"{k} {v['u'] * sc:.2g} ({100 * v['share']:.0f} %)"
-                                              for k, v in rows if v["share"] >= 0.005))
-    inp = ", ".join(f"{x['name']} {x['u']:.3g} {x['unit']}{'' if x['source'] == 'specimen' else ' (default)'}"
-                    for x in b["inputs"])
-    lines.append(f"  inputs (standard uncertainties): {inp}")
-    lines += [f"  note: {n}" for n in b["notes"]]
-    return "\n".join(lines) + "\n"

@@ -1,13 +1,13 @@
 """Gap diagnosis workflow: features JSON (CONTRACT section 2) + nominal rig -> diagnosis.
 
-``problem_from_features(doc, base_dir)`` turns the parsed features
+``gap_features(doc, base_dir)`` turns the parsed features
 (``labid.inputs.features.parse_features``) into the ``engine.features.Features`` the
 diagnosis uses (every mode, as ``labid identify``; measured velocities only;
 UserError naming the key on bad input). ``start_estimate`` is the ONE call into
 the identification: the estimate ``labid identify`` reports with the same
 options (parameters, start, prior), handed to ``engine.gap.diagnose`` as an
 ``engine.gap.StartEstimate``. ``run_diagnosis(doc, base_dir)`` runs both and
-returns the JSON document; ``plot_gap`` (``labid.report.plots``) draws where the gap lies.
+returns the JSON document (its figure: ``labid.report.plots.plot_gap``).
 """
 from __future__ import annotations
 
@@ -25,26 +25,19 @@ from engine.laminate import PhysicsError
 from .identification import estimation
 from ..base import progress
 from ..base.errors import UserError
-from ..inputs.features import DEFAULT_MODAL_SIGMA_REL, DEFAULT_WAVE_SIGMA_REL, parse_features, read_features
-from ..report.plots import plot_gap
+from ..inputs.features import DEFAULT_MODAL_SIGMA_REL, DEFAULT_WAVE_SIGMA_REL, parse_features
 
-__all__ = ["problem_from_features", "problem_and_notes", "run_diagnosis", "plot_gap", "load_features",
-           "start_estimate", "MAX_MODES"]
+__all__ = ["gap_features", "gap_features_and_notes", "run_diagnosis", "start_estimate", "MAX_MODES"]
 
 #: modal frequencies used at most (None: every mode, as labid identify; the per-mode
 #: discretisation error enters the whitening instead of a cut)
 MAX_MODES = None
 
 
-def load_features(path: str | Path) -> tuple[dict, Path]:
-    """Read and validate a features JSON file (``labid.inputs.features``); (doc, its directory)."""
-    return read_features(path), Path(path).parent
-
-
-def problem_from_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
-                          max_modes: int = MAX_MODES) -> Features:
-    """The diagnosis' Features of a features document (see ``problem_and_notes``)."""
-    return problem_and_notes(doc, base_dir, src, max_modes)[0]
+def gap_features(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
+                 max_modes: int = MAX_MODES) -> Features:
+    """The diagnosis' Features of a features document (see ``gap_features_and_notes``)."""
+    return gap_features_and_notes(doc, base_dir, src, max_modes)[0]
 
 
 def _lowest_modes(md: ModalData, max_modes: int, notes: list[str]) -> ModalData:
@@ -69,8 +62,8 @@ def _measured(w: WaveData) -> WaveData | None:
     return WaveData(w.mode, w.direction_deg, w.frequency_hz[ok], cg[ok], sg[ok])
 
 
-def problem_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
-                      max_modes: int = MAX_MODES) -> tuple[Features, list[str]]:
+def gap_features_and_notes(doc: Mapping, base_dir: str | Path = ".", src: str = "<features>",
+                           max_modes: int = MAX_MODES) -> tuple[Features, list[str]]:
     """(Features, notes) from a features document (specimen path relative to
     ``base_dir``, a built-in name or inline). The lowest ``max_modes`` modes are
     kept; velocities that are null/NaN are dropped; absent sigmas default as in
@@ -176,7 +169,7 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
     ``notes``) of parsed features, from identify's estimate (:func:`start_estimate`;
     ``estimate``: identify's result dict for these features and options, if at hand).
     Progress (the estimate, candidates screened and refitted) on stderr via ``labid.base.progress``."""
-    problem, notes = problem_and_notes(doc, base_dir, src)
+    problem, notes = gap_features_and_notes(doc, base_dir, src)
     if estimate is None:
         progress.note("diagnosis: identifying the constants (as labid identify)")
     st = start_estimate(doc, base_dir, src, names, start, prior, result=estimate)

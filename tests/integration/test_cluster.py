@@ -9,7 +9,8 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from labid.workflows import cluster  # noqa: E402
-from labid.cli import identify as cmd_identify  # noqa: E402
+from labid import services  # noqa: E402
+from labid.workflows.identification import flow  # noqa: E402
 from labid.cli.main import main  # noqa: E402
 from labid.base.errors import UserError  # noqa: E402
 from labid.workflows.identification import synthetic_features  # noqa: E402
@@ -29,8 +30,8 @@ def no_fit(monkeypatch):
     """Fail the test if the command reaches the features or the fit."""
     def forbidden(*a, **kw):
         raise AssertionError("fitting started before the scheduler was checked")
-    monkeypatch.setattr(cmd_identify, "load_problem", forbidden)
-    monkeypatch.setattr(cmd_identify, "run", forbidden)
+    monkeypatch.setattr(services, "load_features_file", forbidden)
+    monkeypatch.setattr(flow, "run", forbidden)
 
 
 def one_line_exit_2(code, capsys) -> str:

@@ -16,7 +16,7 @@ from engine.gap import GapFit, GapForward, GapOptions, diagnose, gap_test, own_e
 from engine.gap.start import identify_pairing
 from engine.forward import ALPHA_FIBRE, ALPHA_MATRIX, EFFECTS
 from labid.cli.main import main
-from labid.workflows.diagnosis import problem_from_features
+from labid.workflows.diagnosis import gap_features
 from bench.blind import draw_case
 
 MESH = (4, 4)
@@ -25,7 +25,7 @@ MESH = (4, 4)
 def _diagnose(case, **opts):
     """Diagnosis on the coarse mesh from identify's estimator with a 30 % prior
     (as ``labid identify --prior 0.3``: six constants from ten modes need it)."""
-    problem = problem_from_features(case.features)
+    problem = gap_features(case.features)
     fw = GapForward(problem, mesh=MESH, pairing=identify_pairing(problem.modal))
     options = GapOptions(**opts)
     start = own_estimate(GapFit(problem, fw, options.model_rel_sigma), prior_rel_std=0.3)

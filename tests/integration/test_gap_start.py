@@ -78,10 +78,10 @@ def test_identify_s_own_assignment_is_used_and_unexplained_peaks_carry_no_residu
     """A selection (predicted mode per peak, None = unexplained) as identify reports it:
     the paired peaks are predicted by those modes, the unexplained one has no residual."""
     from engine.gap import GapFit, GapForward
-    from labid.workflows.diagnosis import problem_from_features
+    from labid.workflows.diagnosis import gap_features
     case = draw_case(23, "clean", wave_sets=())
     doc = _without_shapes(case.features, drop=(2,))
-    problem = problem_from_features(doc)
+    problem = gap_features(doc)
     sel = [0, 1, 3, 4, 5, 6, 7, 8, None]          # mode 3 has no peak; the last peak is unexplained
     fw = GapForward(problem, selection=sel)
     F = GapFit(problem, fw, (0.0, 0.0), names=NAMES)

@@ -121,14 +121,15 @@ def test_identify_mcmc_posterior_in_json(al_features, tmp_path, capsys):
     assert code == 2 and "--mcmc" in err
 
 
-def test_identify_variants_splits_the_data():
-    from labid.workflows.identification import identify_variants
+def test_one_flow_identifies_the_data_set_selected():
+    from labid import services
 
     doc = synthetic_features("aluminium", n_modes=None, waves=(("A0", 0.0, 50e3, 10),))
     doc["specimen"] = "aluminium"
-    res = identify_variants(doc, start={"E": 80e9, "G": 30e9})
-    assert list(res) == ["waves"]
-    assert res["waves"].params["E"] == pytest.approx(AL["E"], rel=1e-3)
+    res = services.run_identification(services.select_data(doc, "waves"), start={"E": 80e9, "G": 30e9})
+    assert res.data == ("waves",) and res.data_set == "waves" and res.specimen
+    assert res.parameters["E"]["value"] == pytest.approx(AL["E"], rel=1e-3)
+    assert services.Identification.from_dict(res.to_dict()) == res      # one shape, stored and read
 
 
 def test_null_velocities_and_missing_sigmas(tmp_path, capsys):

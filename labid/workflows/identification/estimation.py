@@ -31,8 +31,8 @@ from ...base.errors import UserError
 from ...inputs.features import parse_features
 from ...inputs.specimen import MODULI, Specimen, unit_slip
 
-__all__ = ["Problem", "problem_from_features", "default_params", "parse_assignments", "start_values", "run",
-           "METHODS", "verdict", "admissibility", "RUNAWAY", "BOX", "POISSON_MAX", "result_dict", "bounds", "context",
+__all__ = ["Problem", "problem_from_features", "default_params", "default_names", "parse_assignments", "start_values", "run",
+           "METHODS", "verdict", "admissibility", "RUNAWAY", "BOX", "POISSON_MAX", "bounds", "context",
            "pairing_report"]
 
 METHODS = ("lm", "bayes", "nelder-mead")
@@ -114,18 +114,25 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
 # parameters
 # ---------------------------------------------------------------------------
 def default_params(problem: Problem) -> tuple[str, ...]:
-    """What the data can reasonably identify.
+    """What the data of ``problem`` can reasonably identify (:func:`default_names`)."""
+    return default_names(problem.kinds, problem.isotropic,
+                         [b.name.partition(":")[2] for b in problem.blocks if b.kind == "waves"])
+
+
+def default_names(kinds, isotropic: bool, wave_modes=()) -> tuple[str, ...]:
+    """What data of ``kinds`` ('modal', 'waves') with wave ``modes`` measured can reasonably
+    identify (no model is built: the panel asks before any fit).
 
     Isotropic: E, G. Orthotropic: the six elastic constants with modal data
     (alone or combined); waves only: E1, G13, G23 (paper Table 3), plus nu12
     when a symmetric (S) mode is measured.
     """
-    if problem.isotropic:
+    if isotropic:
         return ("E", "G")
-    if "modal" in problem.kinds:
+    if "modal" in kinds:
         return ("E1", "E2", "nu12", "G12", "G13", "G23")
     names = ["E1", "G13", "G23"]
-    if any(b.kind == "waves" and ":S" in b.name for b in problem.blocks):
+    if any(str(m).startswith("S") for m in wave_modes):
         names.insert(1, "nu12")
     return tuple(names)
 
@@ -256,10 +263,3 @@ def admissibility(problem: Problem, params: Mapping[str, float], rel: float = 0.
     """{name: reason} of flagged constants (engine.identify.stages.admissibility)."""
     return engine_admissibility(context(problem), params, rel)
 
-
-
-def result_dict(est: Estimate) -> dict:
-    """The ``labid identify`` JSON of an estimate (``Estimate.to_dict``): CONTRACT keys plus,
-    with the verdict, ``identified`` per parameter (and ``reason`` when not), the top-level
-    ``identified``, ``fit``, ``held`` and, when made, ``pairing`` / ``unpaired_modes``."""
-    return est.to_dict()

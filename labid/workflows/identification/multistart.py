@@ -4,7 +4,7 @@
 ``concurrent.futures`` executor (a process pool by default, or a Dask
 ``Client.get_executor()``); each worker builds the forward models once and
 reuses them for its starts. ``distinct_minima`` clusters the end points and
-``minima_summary`` says what was found (issue 12). Figures: ``labid.report.plots.plot_multi_start``.
+``minima_summary`` says what was found (issue 12). Figure: ``labid.report.plots.plot_multi_start``.
 """
 from __future__ import annotations
 
@@ -12,12 +12,12 @@ import json
 import math
 from concurrent.futures import Executor, ProcessPoolExecutor
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
 from ...base import threads
-from ...base.errors import UserError
+from ...base.errors import Cancelled, UserError
 from ...inputs.features import specimen_of
 from .estimation import Problem, problem_from_features, run, start_values
 from ...inputs.specimen import Specimen
@@ -123,13 +123,16 @@ def random_starts(nominal: Mapping[str, float], names: Sequence[str], n: int, *,
 def multi_start(doc: Mapping, starts: Sequence[Mapping[str, float]], names: Sequence[str], *,
                 specimen: Specimen | None = None, base_dir: str | Path = ".", method: str = "lm",
                 prior: float | None = None, executor: Executor | None = None,
-                max_workers: int = 2) -> list[dict]:
+                max_workers: int = 2, progress: Callable[[Any], None] | None = None,
+                should_stop: Callable[[], bool] | None = None) -> list[dict]:
     """Run the estimate from every start, in parallel through ``executor``.
 
     ``executor`` is any ``concurrent.futures.Executor`` (for instance a Dask
     ``Client.get_executor()``); by default a ``ProcessPoolExecutor`` with
-    ``max_workers`` processes. Each worker builds the forward models once and
-    reuses them for its starts. Returns one dict per start, in order.
+    ``max_workers`` processes (``max_workers`` <= 1: one after the other, in this
+    process). Each worker builds the forward models once and reuses them for its starts.
+    Each finished start reports ``("start", i, n)`` to ``progress``; ``should_stop()``
+    raises ``Cancelled`` before the next one. Returns one dict per start, in order.
     """
     spec = specimen if specimen is not None else specimen_of(doc, Path(base_dir), "<features>")
     doc = dict(doc)
@@ -139,11 +142,26 @@ def multi_start(doc: Mapping, starts: Sequence[Mapping[str, float]], names: Sequ
     n_threads = threads.for_workers()
     jobs = [(key, doc, spec, tuple(names), dict(s), method, prior, n_threads) for s in starts]
     if executor is not None:
-        return list(executor.map(_job, jobs))
+        return _collect(executor.map(_job, jobs), len(jobs), progress, should_stop)
     if max_workers <= 1:
-        return [_job(j) for j in jobs]
-    with ProcessPoolExecutor(max_workers=max_workers, initializer=threads.worker_init,
-                             initargs=(n_threads,)) as ex:
+        return _collect((_job(j) for j in jobs), len(jobs), progress, should_stop)
+    ex = ProcessPoolExecutor(max_workers=max_workers, initializer=threads.worker_init, initargs=(n_threads,))
+    try:
         # one start per task: starts differ in cost (local minima take 2x longer), so
         # larger chunks leave a worker idle at the end; a task costs ~1 ms to send
-        return list(ex.map(_job, jobs, chunksize=1))
+        return _collect(ex.map(_job, jobs, chunksize=1), len(jobs), progress, should_stop)
+    finally:
+        ex.shutdown(wait=True, cancel_futures=True)
+
+
+def _collect(results: Iterable[dict], n: int, progress, should_stop) -> list[dict]:
+    """The results of a study in order, reporting each and stopping when asked."""
+    out: list[dict] = []
+    it = iter(results)
+    for i in range(n):
+        if should_stop is not None and should_stop():
+            raise Cancelled()
+        out.append(next(it))
+        if progress is not None:
+            progress(("start", i + 1, n))
+    return out

@@ -153,11 +153,11 @@ def test_gap_forward_taper_is_the_plate_field_and_modal_only():
     from bench.blind import draw_case
     from engine.forward.effects import EFFECTS, PLATE_EFFECTS
     from engine.gap import GapForward
-    from labid.workflows.diagnosis import problem_from_features
+    from labid.workflows.diagnosis import gap_features
 
     assert "thickness_taper" in PLATE_EFFECTS and EFFECTS["thickness_taper"].modalities == ("modal",)
     case = draw_case(3, "clean", wave_sets=(("A0", 0.0, 3),), mesh=(4, 4))
-    pr = problem_from_features(case.features)
+    pr = gap_features(case.features)
     fw = GapForward(pr, mesh=(4, 4), pairing="order")
     p, t = case.truth_constants, 0.08
     y0, y1 = fw.predict(p, {}), fw.predict(p, {"thickness_taper": t})

@@ -18,7 +18,8 @@ import pytest
 
 from engine.fit import DataBlock, estimate
 from engine.fit.budget import BudgetInput, gum_budget, sensitivity_coefficients
-from labid.workflows.budget import budget_of_problem, budget_text, uncertainty_table
+from labid.base.summary import budget_text
+from labid.workflows.budget import budget_of_problem, uncertainty_table
 from labid.base.errors import UserError
 from labid.workflows.identification.estimation import problem_from_features, run
 from labid.inputs.specimen import specimen_from_dict
@@ -77,7 +78,7 @@ def test_thin_plate_weighed_exact_scaling():
 
 def test_defaults_are_stated_values():
     spec = specimen_from_dict(PLATE)
-    t = uncertainty_table({"specimen": PLATE}, spec)
+    t = uncertainty_table(spec)
     assert t["thickness"] == (pytest.approx(0.01 * 5e-4), "default")
     assert t["density"] == (pytest.approx(27.0), "default")
     assert t["length"] == (5e-4, "default")
@@ -86,9 +87,9 @@ def test_defaults_are_stated_values():
 @pytest.mark.parametrize("tab", [{"thickness": -1.0}, {"thick": 1e-5}, {"mass": 0.1, "density": 3.0},
                                  {"length": "1 mm"}])
 def test_bad_uncertainty_table_is_a_user_error(tab):
-    spec = specimen_from_dict(PLATE)
+    # caught where the specimen is read, before any fit
     with pytest.raises(UserError, match="uncertainty"):
-        uncertainty_table({"specimen": dict(PLATE, uncertainty=tab)}, spec)
+        uncertainty_table(specimen_from_dict(dict(PLATE, uncertainty=tab)))
 
 
 def test_waves_path_and_thickness_exact_scaling():

@@ -116,11 +116,12 @@ def test_unreadable_files(tmp_path: Path):
 
 def test_identification_reads_what_we_write(tmp_path: Path):
     # the consumer of the file accepts it: a modal + waves problem on the built-in CFRP plate
-    from labid.workflows.identification import load_problem
+    from labid import services
+    from labid.workflows.identification import problem_from_features
     doc = json.loads(json.dumps(EXAMPLE))
     p = tmp_path / "f.json"
     F.write_features(p, doc, specimen_path="cfrp")
-    prob = load_problem(p)
+    prob = problem_from_features(services.load_features_file(p), base_dir=p.parent, src=str(p))
     assert len(prob.blocks) == 2
 
 
@@ -164,12 +165,12 @@ def test_parse_assumes_sigmas_with_a_note():
 def test_diagnosis_reads_a_file_with_an_unmeasured_velocity(tmp_path: Path):
     """A null velocity (what labid analyze writes for a frequency it cannot pick) is read
     back as NaN; the diagnosis drops that point instead of rejecting the file."""
-    from labid.workflows.diagnosis import problem_and_notes
+    from labid.workflows.diagnosis import gap_features_and_notes
     doc = json.loads(json.dumps(EXAMPLE))
     doc["specimen"] = "cfrp"
     doc["waves"][0]["group_velocity_m_s"] = [812.0, None]
     p = tmp_path / "f.json"
     F.write_features(p, doc)
-    problem, _ = problem_and_notes(F.read_features(p), tmp_path, str(p))
+    problem, _ = gap_features_and_notes(F.read_features(p), tmp_path, str(p))
     w = problem.waves[0]
     assert w.frequency_hz.tolist() == [5000.0] and w.group_velocity_m_s.tolist() == [812.0]

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-import labid.cli.identify
+from labid.workflows.identification import flow
 from labid.cli.main import main as cli_main
 from labid.base.errors import UserError
 from labid.inputs.specimen import load_specimen
@@ -50,7 +50,7 @@ def test_identify_exits_2_before_any_fit(tmp_path, monkeypatch, capsys, entry, k
                                                 "sigma_hz": [0.1, 0.1, 0.1]}}
     (tmp_path / "f.json").write_text(json.dumps(feats))
     fits = []
-    monkeypatch.setattr(labid.cli.identify, "run", lambda *a, **k: fits.append(a) or pytest.fail("fit started"))
+    monkeypatch.setattr(flow, "run", lambda *a, **k: fits.append(a) or pytest.fail("fit started"))
     rc = cli_main(["identify", str(tmp_path / "f.json")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and not fits

@@ -34,11 +34,13 @@ def test_missing_values_print_a_dash():
 def test_units_by_constant_name():
     assert [summary.unit_of(n) for n in ("E1", "G12", "nu12", "density", "C11")] == \
         ["Pa", "Pa", "", "kg/m³", "Pa"]
+    # the CSV's unit column: ASCII, '1' for a ratio
+    assert [summary.unit_of(n, plain=True) for n in ("E1", "nu12", "density")] == ["Pa", "1", "kg/m^3"]
 
 
 def test_expanded_uncertainty_is_k_times_std_in_the_value_prefix():
-    assert summary.constant_with_u("E1", 136.7e9, 0.8e9) == "136.7 GPa ± 1.6 GPa (k=2)"
-    assert summary.constant_with_u("nu12", 0.3, 0.004, k=3) == "0.3 ± 0.012 (k=3)"
+    assert summary.constant_cells("E1", 136.7e9, 0.8e9)[:3] == ("136.7 GPa", "0.80 GPa", "1.6 GPa")
+    assert summary.constant_cells("nu12", 0.3, 0.004, k=3)[2] == "0.012"
 
 
 def _rows(text):

@@ -1,5 +1,5 @@
 """One unit helper (summary.display_unit) behind the budget console text and the panel."""
-from labid.workflows.budget import budget_text
+from labid.base.summary import budget_text
 from labid.base.summary import display_unit
 
 

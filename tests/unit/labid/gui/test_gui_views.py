@@ -348,7 +348,7 @@ def test_whole_session_on_the_simulated_rig(qtbot, tmp_path):
     f = np.array(feats["modal"]["frequencies_hz"])
     assert len(f) == len(auto) and np.isclose(f, back.frequency_hz).any()
     assert pk["manual"].sum() == 1
-    assert set(idr["parameters"]) == {"E1", "E2", "G12"} and idr["data"] == "modal"
+    assert set(idr["parameters"]) == {"E1", "E2", "G12"} and idr["data"] == ["modal"] and idr["data_set"] == "modal"
     assert all(p["std"] > 0 for p in idr["parameters"].values())
     assert {"gap", "where", "effects", "verdict"} <= set(dg)
     assert dg["verdict"] == "sensor_mass", dg["verdict"]      # the effect injected into the rig
