@@ -1,6 +1,12 @@
-"""The one small protocol every acquisition device speaks (real or simulated).
+"""The small protocols every device speaks, real or simulated (ophyd-style: one interface,
+checked by one conformance test, ``tests/unit/drivers/test_protocol_conformance.py``).
 
+Acquisition devices (``Device``: ``drivers.nidaq.NiDaqDevice``, ``mock_hw.rig.SimulatedDevice``):
 configure(channels, timing, trigger) -> arm() -> read(timeout_s) -> Record ... -> close()
+
+Serial instruments (``Instrument``: ``drivers.serial_instruments.EnvironmentProbe``,
+``HammerUnit``; simulated on the wire by ``mock_hw.serial_sim``): identify() -> close(),
+a context manager; their commands are the "LABID serial v1" line protocol.
 
 Units: rates in Hz, sensitivities in V per physical unit (V/(m/s^2) for an
 accelerometer, V/N for a force channel, V/V for a plain voltage channel),
@@ -10,7 +16,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Literal, Protocol, runtime_checkable
+from typing import Any, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -127,3 +133,18 @@ class Device(Protocol):
     def read(self, timeout_s: float = 10.0) -> Record: ...
 
     def close(self) -> None: ...
+
+
+@runtime_checkable
+class Instrument(Protocol):
+    """What the workflow needs from a serial instrument (its queries are its own)."""
+
+    port: str
+
+    def identify(self) -> Any: ...
+
+    def close(self) -> None: ...
+
+    def __enter__(self) -> Any: ...
+
+    def __exit__(self, *exc: Any) -> None: ...

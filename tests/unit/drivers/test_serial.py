@@ -1,5 +1,14 @@
-"""Serial instrument drivers against the simulated instruments over a pty / socket."""
+"""Serial instrument drivers against scripted byte exchanges (PyMeasure's ``expected_protocol``
+style: each command the driver writes is checked byte for byte, and the scripted reply is
+what the port then reads), plus one pty smoke test of the real transport.
+
+The faults a serial line shows are scripted replies: ``b""`` (no reply: the read times out),
+a reply cut short (no ``\\n``), bytes that are not ASCII, a stale line answering an earlier
+query, an exception from the port (unplugged)."""
 from __future__ import annotations
+
+import errno
+import itertools
 
 import pytest
 import serial
@@ -7,30 +16,72 @@ import serial
 from drivers.protocol import AcquisitionError
 from drivers.serial_instruments import (EnvironmentProbe, HammerUnit, Identity, InstrumentError,
                                         InstrumentRefused)
-from mock_hw.serial_sim import PtyServer, SimEnvProbe, SimHammer, TcpServer
+from mock_hw.serial_sim import PtyServer, SimEnvProbe
 
-FAST = dict(timeout_s=0.15, tries=3, retry_delay_s=0.0)  # generous: shared CPUs
-
-
-@pytest.fixture
-def probe_sim():
-    sim = SimEnvProbe(temperature_c=23.41, humidity_pct=45.2, serial="EP0042", firmware="1.3")
-    with PtyServer(sim) as srv:
-        yield sim, srv
+FAST = dict(timeout_s=0.15, tries=3, retry_delay_s=0.0)
 
 
-@pytest.fixture
-def probe(probe_sim):
-    sim, srv = probe_sim
-    with EnvironmentProbe(srv.port, **FAST) as p:
-        yield sim, p
+class Scripted:
+    """A pyserial port replaying ``(command, reply)`` pairs: the driver must write exactly
+    ``command + b"\\n"``; ``reply`` (bytes, or an exception to raise on reading) is what it
+    reads next. Unread bytes are dropped by ``reset_input_buffer`` as on a real port."""
+
+    def __init__(self, pairs):
+        self.pairs = iter(pairs)
+        self.buf = b""
+        self.error: Exception | None = None
+        self.closed = False
+        self.written: list[bytes] = []
+
+    def reset_input_buffer(self) -> None:
+        self.buf = b""
+
+    def write(self, data: bytes) -> int:
+        self.written.append(data)
+        try:
+            cmd, reply = next(self.pairs)
+        except StopIteration:
+            raise AssertionError(f"unexpected command {data!r}: the script is over") from None
+        want = cmd + b"\n"
+        assert data == want, f"wrote {data!r}, the script expects {want!r}"
+        if isinstance(reply, Exception):
+            self.error = reply
+        else:
+            self.buf += reply
+        return len(data)
+
+    def flush(self) -> None:
+        pass
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        if self.error is not None:
+            err, self.error = self.error, None
+            raise err
+        i = self.buf.find(expected)
+        end = len(self.buf) if i < 0 else i + len(expected)
+        if size is not None:
+            end = min(end, size)
+        out, self.buf = self.buf[:end], self.buf[end:]
+        return out
+
+    def close(self) -> None:
+        self.closed = True
+
+    def finished(self) -> bool:
+        return next(self.pairs, None) is None
 
 
-@pytest.fixture
-def hammer():
-    sim = SimHammer(recharge_s=0.0, level_pct=50, serial="HU0007")
-    with PtyServer(sim) as srv, HammerUnit(srv.port, **FAST) as h:
-        yield sim, h
+def expected_protocol(cls, pairs, **kw):
+    """The driver ``cls`` on a scripted port (and the port, to check the script was used up)."""
+    port = Scripted(pairs)
+    opened = []
+
+    def factory(url, **_):
+        if opened:                       # a reopen after a port error: the device is gone
+            raise serial.SerialException(errno.ENOENT, f"could not open port {url}: No such file")
+        opened.append(url)
+        return port
+    return cls("/dev/ttyUSB0", serial_factory=factory, **{**FAST, **kw}), port
 
 
 def one_line(err: BaseException) -> str:
@@ -40,93 +91,68 @@ def one_line(err: BaseException) -> str:
 
 
 # ------------------------------------------------------------ environment probe
-def test_probe_identity_and_values_over_pty(probe):
-    sim, p = probe
-    assert p.port.startswith("/dev/")
+def test_probe_identity_and_values():
+    p, port = expected_protocol(EnvironmentProbe, [(b"*IDN?", b"LABID,ENVPROBE,EP0042,1.3\n"),
+                                                   (b"TEMP?", b"TEMP 23.41\n"), (b"HUM?", b"HUM 45.20\r\n")])
     assert p.identify() == Identity("LABID", "ENVPROBE", "EP0042", "1.3")
-    assert p.temperature() == 23.41
-    assert p.humidity() == 45.2
-    sim.temperature_c, sim.humidity_pct = -5.5, 80.0
-    assert (p.temperature(), p.humidity()) == (-5.5, 80.0)
-    assert sim.received == ["*IDN?", "TEMP?", "HUM?", "TEMP?", "HUM?"]
+    assert (p.temperature(), p.humidity()) == (23.41, 45.2)
+    assert port.finished()
 
 
-@pytest.mark.parametrize("fault", ["noreply", "lost_reply", "garbled", "partial"])
-def test_two_faults_then_success(probe, fault):
-    sim, p = probe
-    sim.inject(fault, times=2)
-    assert p.temperature() == 23.41
-    assert sim.received == ["TEMP?"] * 3
-    assert sim.pending_faults() == 0
+@pytest.mark.parametrize("bad", [b"", b"TEMP ", b"T\xc5MP 2\xb3.41\n", b"TEMP 23.41 C\n"],
+                         ids=["no reply", "partial", "not ascii", "garbled"])
+def test_two_faults_then_success(bad):
+    p, port = expected_protocol(EnvironmentProbe, [(b"TEMP?", bad), (b"TEMP?", bad), (b"TEMP?", b"TEMP 23.41\n")])
+    assert p.temperature() == 23.41 and port.finished()
 
 
-@pytest.mark.parametrize("fault, words", [
-    ("noreply", "no reply to TEMP? after 3 tries"),
-    ("lost_reply", "no reply to TEMP? after 3 tries"),
-    ("garbled", "garbled reply"),
-    ("partial", "partial reply b'TEMP '"),
-])
-def test_persistent_fault_gives_one_line_error(probe, fault, words):
-    sim, p = probe
-    sim.inject(fault, times=3)
+@pytest.mark.parametrize("bad, words", [(b"", "no reply to TEMP? after 3 tries"),
+                                        (b"T\xc5MP\n", "garbled reply"),
+                                        (b"TEMP ", "partial reply b'TEMP '")])
+def test_persistent_fault_gives_one_line_error_and_the_probe_still_works(bad, words):
+    p, port = expected_protocol(EnvironmentProbe, [(b"TEMP?", bad)] * 3 + [(b"HUM?", b"HUM 45.20\n")])
     with pytest.raises(InstrumentError) as ei:
         p.temperature()
     msg = one_line(ei.value)
-    assert words in msg and msg.startswith(f"environment probe on {p.port}: ")
-    assert "TEMP?" in msg and "3 tries" in msg
+    assert words in msg and msg.startswith("environment probe on /dev/ttyUSB0: ") and "3 tries" in msg
     assert isinstance(ei.value, AcquisitionError)
-    assert len(sim.received) == 3
-    # the instrument is usable again afterwards
-    assert p.humidity() == 45.2
+    assert p.humidity() == 45.2 and port.finished()
 
 
-def test_mixed_faults_recovered(probe):
-    sim, p = probe
-    sim.inject("garbled")
-    sim.inject("partial")
-    assert p.humidity() == 45.2
-    assert len(sim.received) == 3
+def test_a_late_reply_to_an_earlier_query_is_skipped():
+    """TEMP? times out, its reply arrives while HUM? waits: recognised by its keyword."""
+    p, port = expected_protocol(EnvironmentProbe, [(b"TEMP?", b""), (b"TEMP?", b"TEMP 23.41\n"),
+                                                   (b"HUM?", b"TEMP 23.41\nHUM 45.20\n")])
+    assert p.temperature() == 23.41 and p.humidity() == 45.2 and port.finished()
 
 
-def test_late_reply_is_not_taken_for_the_next_query(probe_sim):
-    """A reply to TEMP? arriving while HUM? waits is recognised and skipped.
-
-    Time line (T = 0.4 s timeout): TEMP? try 1 at 0, its reply is sent at
-    0.55 s; try 2 at ~0.4 s is answered at once; HUM? at ~0.41 s is answered at
-    ~0.76 s, so the stale 'TEMP 23.41' reaches the driver first, inside HUM?'s window.
-    """
-    sim, srv = probe_sim
-    with EnvironmentProbe(srv.port, timeout_s=0.4, tries=3, retry_delay_s=0.0) as p:
-        sim.inject("late", command="TEMP?", delay_s=0.55)
-        sim.inject("late", command="HUM?", delay_s=0.35)
-        assert p.temperature() == 23.41
-        assert p.humidity() == 45.2
-        assert sim.received == ["TEMP?", "TEMP?", "HUM?"]   # HUM? answered on the first try
-
-
-def test_out_of_range_value_counts_as_garbled(probe):
-    sim, p = probe
-    sim.humidity_pct = 130.0                # impossible relative humidity
+def test_out_of_range_value_counts_as_garbled():
+    p, _ = expected_protocol(EnvironmentProbe, [(b"HUM?", b"HUM 130.00\n")] * 3)
     with pytest.raises(InstrumentError, match="garbled reply b'HUM 130.00"):
         p.humidity()
 
 
-def test_unknown_command_is_refused_without_retry(probe):
-    sim, p = probe
+def test_unknown_command_is_refused_without_retry():
+    p, port = expected_protocol(EnvironmentProbe, [(b"PRES?", b"ERR UNKNOWN PRES?\n")])
     with pytest.raises(InstrumentRefused) as ei:
         p.command("PRES?", r"PRES .*")
-    assert "ERR UNKNOWN PRES?" in one_line(ei.value)
-    assert sim.received == ["PRES?"]
+    assert "ERR UNKNOWN PRES?" in one_line(ei.value) and port.finished()
 
 
-def test_wrong_instrument_on_port(hammer):
-    sim, h = hammer
-    probe = EnvironmentProbe(h.port, **FAST)
-    try:
-        with pytest.raises(InstrumentError, match="expected a LABID ENVPROBE, found 'LABID,HAMMER"):
-            probe.identify()
-    finally:
-        probe.close()
+def test_wrong_instrument_on_port():
+    p, _ = expected_protocol(EnvironmentProbe, [(b"*IDN?", b"LABID,HAMMER,HU0007,1.0\n")])
+    with pytest.raises(InstrumentError, match="expected a LABID ENVPROBE, found 'LABID,HAMMER"):
+        p.identify()
+
+
+def test_unplugged_mid_session_is_one_line():
+    p, _ = expected_protocol(EnvironmentProbe, [(b"TEMP?", b"TEMP 23.00\n"),
+                                                (b"TEMP?", serial.SerialException("device reports readiness "
+                                                                                  "to read but returned no data"))])
+    assert p.temperature() == 23.0
+    with pytest.raises(InstrumentError) as ei:
+        p.temperature()
+    assert one_line(ei.value) == "serial port /dev/ttyUSB0 not found; is the environment probe plugged in?"
 
 
 def test_missing_port():
@@ -136,22 +162,6 @@ def test_missing_port():
                                   "is the environment probe plugged in?")
 
 
-def test_unplugged_mid_session():
-    sim = SimEnvProbe()
-    srv = PtyServer(sim)
-    p = EnvironmentProbe(srv.port, **FAST)
-    try:
-        assert p.temperature() == 23.0
-        srv.close()                         # the pty disappears
-        with pytest.raises(InstrumentError) as ei:
-            p.temperature()
-        msg = one_line(ei.value)
-        assert srv.port in msg and ("not found" in msg or "port error" in msg or "no reply" in msg)
-    finally:
-        p.close()
-        srv.close()
-
-
 def test_loopback_url_is_not_an_instrument():
     p = EnvironmentProbe("loop://", **FAST)
     try:
@@ -159,17 +169,6 @@ def test_loopback_url_is_not_an_instrument():
             p.identify()
     finally:
         p.close()
-
-
-def test_socket_url():
-    sim = SimEnvProbe(temperature_c=19.75, humidity_pct=60.0)
-    with TcpServer(sim) as srv:
-        assert srv.port.startswith("socket://")
-        with EnvironmentProbe(srv.port, timeout_s=0.2, tries=3, retry_delay_s=0.0) as p:
-            assert p.identify().model == "ENVPROBE"
-            assert p.temperature() == 19.75
-            sim.inject("garbled")
-            assert p.humidity() == 60.0
 
 
 def test_uses_serial_for_url():
@@ -184,62 +183,64 @@ def test_uses_serial_for_url():
 
 
 # ------------------------------------------------------------ hammer unit
-def test_hammer_fire_counts_hits(hammer):
-    sim, h = hammer
-    fired = []
-    sim.on_fire = fired.append
+def test_hammer_fire_counts_hits():
+    h, port = expected_protocol(HammerUnit, [(b"*IDN?", b"LABID,HAMMER,HU0007,1.0\n"),
+                                             (b"COUNT?", b"COUNT 0\n"), (b"ARM?", b"ARM 1\n"), (b"FIRE", b"OK\n"),
+                                             (b"COUNT?", b"COUNT 1\n"), (b"ARM?", b"ARM 1\n"), (b"FIRE", b"OK\n")])
     assert h.identify() == Identity("LABID", "HAMMER", "HU0007", "1.0")
-    assert h.fire() == 1 and h.fire() == 2
-    assert sim.hits == 2 and fired == [50, 50]
+    assert h.fire() == 1 and h.fire() == 2 and port.finished()
 
 
-def test_lost_ok_does_not_double_fire(hammer):
-    sim, h = hammer
-    sim.inject("lost_reply", command="FIRE")
-    assert h.fire() == 1
-    assert sim.hits == 1
-    assert sim.received.count("FIRE") == 1
+def test_lost_ok_does_not_double_fire():
+    """FIRE was heard (the counter moved) but its OK was lost: no second FIRE."""
+    h, port = expected_protocol(HammerUnit, [(b"COUNT?", b"COUNT 4\n"), (b"ARM?", b"ARM 1\n"), (b"FIRE", b""),
+                                             (b"COUNT?", b"COUNT 5\n")])
+    assert h.fire() == 5 and port.finished()
 
 
-def test_unheard_fire_is_resent(hammer):
-    sim, h = hammer
-    sim.inject("noreply", times=2, command="FIRE")
-    assert h.fire() == 1
-    assert sim.hits == 1 and sim.received.count("FIRE") == 3
+def test_unheard_fire_is_resent():
+    h, port = expected_protocol(HammerUnit, [(b"COUNT?", b"COUNT 0\n")]
+                                + [(b"ARM?", b"ARM 1\n"), (b"FIRE", b""), (b"COUNT?", b"COUNT 0\n")] * 2
+                                + [(b"ARM?", b"ARM 1\n"), (b"FIRE", b"OK\n")])
+    assert h.fire() == 1 and port.finished()
 
 
-def test_fire_never_heard_gives_clear_error(hammer):
-    sim, h = hammer
-    sim.inject("noreply", times=3, command="FIRE")
+def test_fire_never_heard_gives_clear_error():
+    h, _ = expected_protocol(HammerUnit, [(b"COUNT?", b"COUNT 0\n")]
+                             + [(b"ARM?", b"ARM 1\n"), (b"FIRE", b""), (b"COUNT?", b"COUNT 0\n")] * 3)
     with pytest.raises(InstrumentError) as ei:
         h.fire()
     assert one_line(ei.value).endswith("no reply to FIRE after 3 tries; no hit fired")
-    assert sim.hits == 0
 
 
-def test_fire_waits_for_recharge(hammer):
-    sim, h = hammer
-    sim.recharge_s = 0.3
-    h.fire()
-    assert not h.ready()
-    assert h.fire() == 2                    # waited for ARM 1 instead of getting ERR BUSY
-    assert sim.hits == 2
-    assert "ARM 0" not in sim.received and sim.received.count("ARM?") >= 3
+def test_fire_waits_for_recharge():
+    h, port = expected_protocol(HammerUnit, [(b"COUNT?", b"COUNT 1\n"), (b"ARM?", b"ARM 0\n"), (b"ARM?", b"ARM 0\n"),
+                                             (b"ARM?", b"ARM 1\n"), (b"FIRE", b"OK\n")])
+    assert h.fire() == 2 and port.finished()       # waited for ARM 1 instead of getting ERR BUSY
 
 
-def test_fire_gives_up_if_never_ready(hammer):
-    sim, h = hammer
-    sim.recharge_s = 10.0
-    h.fire()
+def test_fire_gives_up_if_never_ready():
+    h, _ = expected_protocol(HammerUnit, itertools.chain([(b"COUNT?", b"COUNT 1\n")],
+                                                         itertools.repeat((b"ARM?", b"ARM 0\n"))))
     with pytest.raises(InstrumentError, match="not ready to fire after 0.1 s"):
         h.fire(ready_timeout_s=0.1)
-    assert sim.hits == 1
 
 
-def test_hammer_level(hammer):
-    sim, h = hammer
+def test_hammer_level():
+    h, port = expected_protocol(HammerUnit, [(b"LEVEL 80", b"OK\n"), (b"LEVEL?", b"LEVEL 80\n"),
+                                             (b"LEVEL 150", b"ERR RANGE 0..100\n")])
     h.set_level(80)
-    assert h.level() == 80 and sim.level_pct == 80
+    assert h.level() == 80
     with pytest.raises(InstrumentRefused, match="LEVEL 150 refused: ERR RANGE 0..100"):
         h.set_level(150)
-    assert sim.level_pct == 80
+    assert port.finished()
+
+
+# ------------------------------------------------------------ the real transport, once
+def test_probe_over_a_pty():
+    sim = SimEnvProbe(temperature_c=23.41, humidity_pct=45.2, serial="EP0042", firmware="1.3")
+    with PtyServer(sim) as srv, EnvironmentProbe(srv.port, **FAST) as p:
+        assert p.port.startswith("/dev/")
+        assert p.identify() == Identity("LABID", "ENVPROBE", "EP0042", "1.3")
+        assert (p.temperature(), p.humidity()) == (23.41, 45.2)
+    assert sim.received == ["*IDN?", "TEMP?", "HUM?"]
