@@ -23,6 +23,25 @@ Public API (re-exported here): ``PlateModel``, ``Modes``, ``Mesh``, ``FEError``,
 ``natural_frequencies``, ``mode_families``, ``coefficients_from_abdh``, ``DEFAULT_ELEMENTS``,
 ``EDGE_LAYER``, ``COEF_NAMES``, ``Q_NAMES``, ``NODE_DOF``.
 
+The workflow (run by the test suite as a doctest): a laminate, a mesh, the model built
+once, its modes at any parameter set. NAFEMS FV12, a free 10 m square steel plate 50 mm
+thick, has the elastic modes 1.622, 2.360, 2.922, 4.190, 4.190 Hz; a 4 x 4 mesh gives
+
+>>> import numpy as np
+>>> from engine.laminate import Laminate, Material, Ply
+>>> from engine.plate import Mesh, PlateModel
+>>> steel = Material.isotropic_from(200e9, 8000.0, nu=0.3)
+>>> plate = PlateModel.build(Laminate([Ply(steel, 0.0, 0.05)]), 10.0, 10.0, Mesh.graded(10.0, 10.0, 4, ()))
+>>> np.round(plate.solve(5).frequencies_hz, 2)
+array([1.62, 2.36, 2.92, 4.19, 4.19])
+
+and the same model at other constants (the parts are linear in them: no reassembly),
+e.g. a 10 % stiffer steel, sqrt(1.1) x higher:
+
+>>> f = plate.solve(1, params={"E": 220e9, "G": 220e9 / 2.6}).frequencies_hz
+>>> round(float(f[0] / plate.solve(1).frequencies_hz[0]) ** 2, 4)
+1.1
+
 Package-internal (public names shared by the modules of this package; not for
 other layers): ``element.shape_2d``, ``element.combo_scales``,
 ``element.reference_matrices``, ``element.SYM3``/``SYM2``, ``stiffness.q_vector``,

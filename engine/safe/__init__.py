@@ -21,6 +21,20 @@ Public API (re-exported here): ``dispersion``, ``dispersion_from_model``,
 ``ForceHistory``, ``hammer_force``, ``pencil_lead_break``, ``tone_burst``,
 ``mode_transfer``, ``mode_velocities``, ``transient_response``, ``QUANTITIES``.
 
+The workflow (run by the test suite as a doctest): a laminate, then the velocities of
+one mode on a frequency grid. The exact Rayleigh-Lamb group velocities of a 1 mm
+aluminium plate (E = 70 GPa, nu = 0.33, 2700 kg/m^3) at f h = 0.1 and 0.5 MHz mm are
+A0 1783.696 and 2908.787 m/s, S0 5391.689 and 5335.510 m/s:
+
+>>> import numpy as np
+>>> from engine.laminate import Laminate, Material, Ply
+>>> from engine.safe import group_velocity
+>>> al = Laminate([Ply(Material.isotropic_from(70e9, 2700.0, nu=0.33), 0.0, 1e-3)])
+>>> np.round(group_velocity(al, [100e3, 500e3], "A0"), 1)
+array([1783.7, 2908.8])
+>>> np.round(group_velocity(al, [100e3, 500e3], "S0"), 1)
+array([5391.7, 5335.5])
+
 Package-internal (public names shared by the modules of this package, and used by
 its tests and benchmarks; not for other layers): ``model.DofClass``,
 ``model.class_bases``, ``model.coupling``, ``model.TWO_PI``, everything in
