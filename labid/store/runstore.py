@@ -20,8 +20,7 @@ Schema ``labid_schema = 1`` (NeXus-style ``NX_class`` and ``units`` attributes):
         meta               (n,) fixed-length UTF-8 JSON of ``Record.meta``
         committed          (n,) int64 shot numbers: the commit marker, written last
     /results               NXcollection: processing/identification (``write_group``)
-    /results/history/<name>/<n>   earlier identifications and diagnoses, kept (``labid.runresults``:
-                           the newest at /results/<name> carries ``stored`` {number, time, by})
+    /results/history/<name>/<n>  older identifications/diagnoses (labid.runresults; newest: /results/<name>)
 
 Crash safety: shots are written in HDF5 SWMR mode (``libver='latest'``), whose
 ordered metadata writes keep the file readable whatever the moment the writer
