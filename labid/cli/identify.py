@@ -122,6 +122,8 @@ def _progress():
     bars: dict = {}
 
     def report(item) -> None:
+        if "budget" in bars:            # the budget's own model evaluations are not counted
+            return
         if item[0] == "eval":
             bars.setdefault("eval", progress.bar(None, "identify: model evaluations", unit="eval")).update(1)
         elif item[0] == "start":
@@ -129,6 +131,7 @@ def _progress():
         elif item[0] == "budget":
             for b in bars.values():
                 b.close()
+            bars["budget"] = None
             progress.note("identify: GUM uncertainty budget (sensitivities to the type-B inputs)")
     return report
 
