@@ -53,7 +53,7 @@ from .workflows.analysis import (Analysis, AnalysisSettings, analyze_store, moda
 from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
                       scalogram)
 from .base.errors import Cancelled, UserError
-from .workflows.damping import damping_summary
+from .workflows.damping import damping_summary, family_of
 from .inputs.features import features_text, specimen_of
 from .inputs import calibration as calib
 from .io import exporters, importers
@@ -72,6 +72,7 @@ __all__ = [
     "features_path", "run_analysis", "run_reference", "stored_peaks", "save_picks", "spectra_of_run",
     "spectrum_indicator", "toggle_peak",
     # identification and diagnosis
+    "family_of",
     "select_data", "load_features_file", "specimen_for_features", "parse_start", "cancellable",
     "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
     # import, export, calibration (labid.io)
