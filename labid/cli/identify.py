@@ -134,8 +134,8 @@ def _print(out: dict, names) -> None:
         flag = "" if ident[n]["identified"] else (
             f"   (not identified: {ident[n].get('reason', 'poorly identified')})" if n in out.get("held", {})
             else f"   (not identified: {ident[n].get('reason', 'poorly identified')}; "
-                 f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
-        w(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}\n")
+                 f"u {100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
+        w(f"  {n:>7} = {v * sc:10.4g}{unit}, u (k=1, fit) {s * sc:.3g}{unit}{flag}\n")
 
     r = out["residual"]
     w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
