@@ -59,7 +59,7 @@ from .inputs import calibration as calib
 from .io import exporters, importers
 from .inputs.rig import Rig, load_rig
 from .inputs.specimen import Specimen, load_specimen, specimen_from_dict
-from .store import KINDS, RunStore, WriterLock, decode_result
+from .store import KINDS, RunStore, WriterLock
 
 __all__ = [
     # the run file
@@ -123,7 +123,7 @@ def open_run(path: str | Path, max_shots: int = 0) -> RunData:
             rd.wave = st.shots("wave", limit=max_shots)
         for name in st.result_names():
             try:
-                rd.results[name] = decode_result(st.read_group(name))
+                rd.results[name] = st.read_result(name)     # the JSON copy alone when there is one
             except (KeyError, ValueError, OSError):
                 continue
     return rd

@@ -369,11 +369,9 @@ class AcquisitionView(QWidget):
         if self.job is not None or (run and run == self._acquired_into):
             return      # acquiring, or just acquired here: the live view already shows it
         counts = {"hammer": 0, "wave": 0}
-        if run and Path(run).exists():
-            try:
-                counts.update(services.open_run(run, max_shots=0).counts)
-            except (UserError, OSError):
-                pass
+        snap = self.main.snapshot()         # the run read once (gui.snapshot)
+        if snap is not None:
+            counts.update(snap.run.counts)
         self.done = {k: int(counts.get(k, 0)) for k in ("hammer", "wave")}
         self.planned = dict(self.done)
         self.counter.setText(f"in the run file: {self.done['hammer']} hits · {self.done['wave']} wave shots")
@@ -384,10 +382,9 @@ class AcquisitionView(QWidget):
             empty_note(self.trace_plot, "no data yet: no shot recorded in this run")
             empty_note(self.spec_plot, "no data yet")
             return
-        try:
-            rec = services.shots(run, kind)[-1]
-        except (UserError, OSError, IndexError) as e:
-            self.main.message(f"cannot read the last {kind} shot of {run}: {e}", error=True)
+        rec = snap.last if snap is not None and snap.last_kind == kind else None
+        if rec is None:
+            self.main.message(f"cannot read the last {kind} shot of {run}", error=True)
             return
         self.show_record(display_record(kind, rec))
         self.trace_plot.setTitle(f"time traces: last stored {kind} record ({rec.meta.get('shot', '')})")

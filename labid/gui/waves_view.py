@@ -82,12 +82,9 @@ class WavesView(QWidget):
         self._records = []
         self.shot_combo.blockSignals(True)
         self.shot_combo.clear()
-        if self.main.run_path:
-            try:
-                recs = services.shots(self.main.run_path, "wave", limit=10)
-            except Exception:  # noqa: BLE001 - no file / no shots: nothing to show
-                recs = []
-            for r in recs:
+        snap = self.main.snapshot()         # the run read once (gui.snapshot): up to 10 wave shots
+        if snap is not None:
+            for r in snap.waves:
                 for c in r.channels:
                     self._records.append((r, c.name))
                     self.shot_combo.addItem(f"{r.meta.get('shot', '?')} · {c.name}")
