@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Callable
 
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QProgressBar, QPushButton, QTabWidget)
 
@@ -36,6 +36,9 @@ AUTOSAVE_AFTER = ("acquisition", "analysis", "identification", "diagnosis")
 
 class MainWindow(QMainWindow):
     """``MainWindow(run_path=None)``: the lab panel; ``run_path`` opens an existing run."""
+
+    #: emitted with the run's path once it is open and the views restored
+    run_opened = Signal(str)
 
     def __init__(self, run_path: str | None = None, background: bool = False):
         super().__init__()
@@ -239,6 +242,7 @@ class MainWindow(QMainWindow):
             self.message(f"opened {path}; calibration overdue: " + "; ".join(overdue), error=True)
         else:
             self.message(f"opened {path}")
+        self.run_opened.emit(str(path))
 
     def snapshot(self) -> Snapshot | None:
         """The run file as the views show it, read once (``gui.snapshot``) and kept until the
