@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..base import progress
 from ..workflows import cluster
 from .. import services
 from ..workflows.budget import budget_text, identify_budget
@@ -73,7 +74,11 @@ def _identify(args: argparse.Namespace, client) -> dict:
         raise UserError(f"value {args.prior!r}: expected a positive number", key="--prior")
     if args.starts < 0 or args.workers < 1:
         raise UserError("expected --starts >= 0 and --workers >= 1", key="--starts")
-    est = run(problem, names, start, method=args.method, prior=args.prior)
+    problem.blocks, watch = progress.watch_fit(problem.blocks, "identify: model evaluations")  # issue 26
+    try:
+        est = run(problem, names, start, method=args.method, prior=args.prior)
+    finally:
+        watch.close()
     out = result_dict(est)
     out["data"] = list(problem.kinds)
     if args.mcmc:
@@ -89,8 +94,12 @@ def _identify(args: argparse.Namespace, client) -> dict:
         starts = random_starts(st0, est.names, args.starts, seed=args.seed, problem=problem)
         doc = load_features(args.features)
         executor = client.get_executor() if client is not None else None
-        results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
-                              prior=args.prior, executor=executor, max_workers=args.workers)
+        done, bar = progress.counter(len(starts), "identify: multi-start" + (" (cluster)" if executor else ""))
+        try:
+            results = multi_start(doc, starts, est.names, specimen=problem.specimen, method=args.method,
+                                  prior=args.prior, executor=executor, max_workers=args.workers, on_done=done)
+        finally:
+            bar.close()
         out["multi_start"] = results
         out["multi_start_minima"] = distinct_minima(results, est.names)
         if args.plot:
@@ -98,6 +107,8 @@ def _identify(args: argparse.Namespace, client) -> dict:
     if args.json != "-":
         _print(out, est.names)
     # issue 16 (helper s6): the GUM uncertainty budget (JSON uncertainty_budget, console table)
+    if progress.enabled():
+        progress.note("labid identify: GUM uncertainty budget (the model differentiated in each input)")
     out["uncertainty_budget"] = identify_budget(problem, est, args.features)
     if args.json != "-":
         sys.stdout.write(budget_text(out["uncertainty_budget"]))
