@@ -50,8 +50,8 @@ from .workflows.acquisition import AcquisitionSession, LiveSession
 from .workflows.budget import budget_of_problem
 from .workflows.analysis import (Analysis, AnalysisSettings, analyze_store, modal_features, modal_table,
                                  store_analysis)
-from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
-                      scalogram)
+from .display import (HammerChecks, Scalogram, average_spectrum, hammer_checks, model_frequencies,
+                      model_group_velocity, parameters_of, scalogram)
 from .base.errors import Cancelled, UserError
 from .workflows.damping import damping_summary, family_of
 from .inputs.features import features_text, specimen_of
@@ -79,7 +79,7 @@ __all__ = [
     "import_records", "export_run", "write_result_tables", "calibration_status", "run_calibration",
     "warn_calibration",
     # display (labid.display)
-    "Scalogram", "average_spectrum", "scalogram", "model_group_velocity", "model_frequencies", "parameters_of",
+    "Scalogram", "average_spectrum", "scalogram", "HammerChecks", "hammer_checks", "model_group_velocity", "model_frequencies", "parameters_of",
 ]
 
 #: where the workflows' results sit under /results (first match wins)

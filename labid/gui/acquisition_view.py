@@ -130,7 +130,8 @@ class AcquisitionView(QWidget):
         self.trace_plot.addLegend(offset=(-5, 5), brush=pg.mkBrush(255, 255, 255, 210))
         self.spec_plot = pg.PlotWidget(title="amplitude spectra (last record)")
         self.spec_plot.setLabel("bottom", "frequency", "Hz")
-        self.spec_plot.setLabel("left", "level", "dB")
+        self.spec_plot.addLegend(offset=(-5, 5), brush=pg.mkBrush(255, 255, 255, 210))
+        self.spec_plot.setLabel("left", "level (dB re 1 unit of the channel: N, m/s², V)")
         for p in (self.trace_plot, self.spec_plot):
             p.setBackground("w")
             p.showGrid(x=True, y=True, alpha=0.3)
@@ -331,7 +332,8 @@ class AcquisitionView(QWidget):
             peak = float(np.max(np.abs(y))) or 1.0
             self.trace_plot.plot(d["t"], y / peak, pen=pg.mkPen(col, width=1),
                                  name=f"{name} (÷{peak:.3g} {d['units'][name]})")
-            self.spec_plot.plot(d["f"][1:], d["spectra"][name][1:], pen=pg.mkPen(col, width=1))
+            self.spec_plot.plot(d["f"][1:], d["spectra"][name][1:], pen=pg.mkPen(col, width=1),
+                                name=f"{name} (dB re 1 {d['units'][name]})")
         self.trace_plot.setLabel("left", "normalised signal")
         for name, ov in d["overload"].items():
             if name in self.lights:

@@ -21,6 +21,7 @@ from ..base.jsonio import to_jsonable
 from ..report.certificate import write_report
 from ..base.summary import next_step
 from .acquisition_view import AcquisitionView
+from .checks_view import ChecksView
 from .gap_view import GapView
 from .identification_view import IdentificationView
 from .modes_view import ModesView
@@ -29,7 +30,7 @@ from .snapshot import Snapshot, load as load_snapshot
 from .waves_view import WavesView
 from .worker import Job
 
-TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap")
+TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap", "Hammer checks")
 #: exclusive jobs after which the session state is saved in the run file
 AUTOSAVE_AFTER = ("acquisition", "analysis", "identification", "diagnosis")
 
@@ -58,8 +59,10 @@ class MainWindow(QMainWindow):
         self.waves = WavesView(self)
         self.identification = IdentificationView(self)
         self.gap = GapView(self)
+        self.checks = ChecksView(self)     # last: the stored tab indices of earlier sessions stay valid
         self.views = {"setup": self.setup, "acquisition": self.acquisition, "modes": self.modes,
-                      "waves": self.waves, "identification": self.identification, "gap": self.gap}
+                      "waves": self.waves, "identification": self.identification, "gap": self.gap,
+                      "checks": self.checks}
         self.tabs = QTabWidget()
         for title, w in zip(TABS, self.views.values()):
             self.tabs.addTab(w, title)

@@ -32,6 +32,9 @@ class WavesView(QWidget):
         self.image = pg.ImageItem()
         self.image.setColorMap(pg.colormap.get("viridis"))
         self.scalogram.addItem(self.image)
+        # the colour scale of |W| (issue 26), in the unit of the record's channel
+        self.colorbar = pg.ColorBarItem(colorMap=pg.colormap.get("viridis"), interactive=False, width=12)
+        self.colorbar.setImageItem(self.image, insert_in=self.scalogram.getPlotItem())
         self.ridge = pg.PlotDataItem(pen=pg.mkPen("w", width=2), symbol="o", symbolSize=4, symbolBrush="w")
         self.scalogram.addItem(self.ridge)
         self.velocity = plot("group velocity", ("frequency", "Hz"), ("group velocity", "m/s"))
@@ -123,6 +126,9 @@ class WavesView(QWidget):
         sc = services.scalogram(rec, name, self._res, n_freqs=100)
         t, fmin, fmax = sc.times_s, float(sc.frequencies_hz[0]), float(sc.frequencies_hz[-1])
         self.image.setImage(sc.magnitude.T, autoLevels=True)
+        self.colorbar.setLevels((float(sc.magnitude.min()), float(sc.magnitude.max())))
+        unit = {"accelerometer": "m/s²", "force": "N"}.get(rec.channel(name).kind, "V")
+        self.colorbar.axis.setLabel("|W|", units=unit)     # SI prefix added by the axis: mV
         self.image.setRect(pg.QtCore.QRectF(t[0], fmin, t[-1] - t[0], fmax - fmin))
         self.info.setText(f"{sc.wavelet} · {fs / 1e6:g} MHz · {len(t)} samples")
         self.ridge.setData([], [])
