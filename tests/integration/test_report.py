@@ -230,3 +230,16 @@ def test_one_mode_label_per_peak_in_every_table(run_file):
     assert html.count("<td>1</td><td>50.000</td><td>10.0 mHz</td><td>(2,1)</td>") == 1
     assert "<td>1</td><td>50.000</td><td>1</td><td>(2,1)</td>" in html
     assert "<td>50.000</td><td>(2,1)</td><td>0.01</td>" in html
+
+
+def test_report_limits_mistakes_are_one_line():
+    import tomllib
+    from labid.base.errors import UserError
+    from labid.inputs.specimen import specimen_from_dict
+    doc = tomllib.loads(_spec_text() + "\n[report.limits]\nE1 = [145e9, 130e9]\n")
+    with pytest.raises(UserError, match=r"s\.toml: report\.limits\.E1: value \[145000000000\.0, 130000000000\.0\]: "
+                                        r"expected \[low, high\] in SI units, low <= high"):
+        specimen_from_dict(doc, "s.toml")
+    doc = tomllib.loads(_spec_text() + "\n[report]\nlimits = 3\n")
+    with pytest.raises(UserError, match=r"report\.limits: value 3: expected a table NAME = \[low, high\]"):
+        specimen_from_dict(doc, "s.toml")
