@@ -14,8 +14,6 @@ import sys
 from dataclasses import replace
 from typing import Any
 
-import numpy as np
-
 _QUIET = False
 
 
@@ -77,6 +75,7 @@ def watch_fit(blocks: list, desc: str) -> tuple[list, Any]:
     b = bar(None, desc, unit="eval")
     if isinstance(b, _Null):
         return list(blocks), b
+    import numpy as np     # here: labid --help imports this module and must not pay numpy's import
     last: dict[int, float] = {}
 
     def wrap(i: int, block, fn, returns_pair: bool):

@@ -63,7 +63,7 @@ from .h5repair import is_consistency_flag_error, repair
 from .lock import WriterLock
 from .readonly import open_read_only
 from .tables import read_records
-from .tree import decode_result, json_default, read_tree, replace_group, write_tree
+from .tree import decode_result, json_default, read_json_copy, read_tree, replace_group, write_tree
 from .validate import check_run, damaged, reading
 
 #: suffixes of the temporary files a writer makes beside the run (removed under the lock)
@@ -494,17 +494,7 @@ class RunStore:
             return read_tree(self._f[full])
 
     def read_result(self, path: str) -> Any:
-        """The result under ``/results/<path>`` as ``write_result`` wrote it: its JSON copy
-        when it has one, else the nested dict of ``read_group``. KeyError if absent.
-        The JSON copy is read alone (issue 26: decoding the structured twin first cost
-        ~0.4 s CPU per identification on the demo run, and the panel read it 8 times)."""
-        full = f"results/{path.strip('/')}"
+        """``/results/<path>``: its JSON copy when it has one (read alone), else ``read_group``'s."""
         with self._reading():
-            g = self._f.get(full)
-            text = g.get("json") if isinstance(g, h5py.Group) else None
-            if isinstance(text, h5py.Dataset) and h5py.check_string_dtype(text.dtype) and text.shape == ():
-                x = text[()]
-                got = decode_result({"json": x.decode() if isinstance(x, bytes) else x})
-                if not (isinstance(got, dict) and "json" in got):     # a copy that parses
-                    return got
-        return decode_result(self.read_group(path))
+            got = read_json_copy(self._f.get(f"results/{path.strip('/')}"))
+        return got if got is not None else decode_result(self.read_group(path))
