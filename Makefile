@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[test]'
 	@touch $(STAMP)
 
-# both cores, one test file per worker (module fixtures built once): 586 tests in 5 min 53 s
-# against 9 min 31 s in one process (2-core EPYC, load ~1, bench/RESULTS.md)
+# both cores, one test file per worker (module fixtures built once): 640 tests, 645 s of CPU
+# (614 s user + 31 s sys); wall 72 min beside two CPU burners on a shared 2-core EPYC at load
+# 10-32, 2026-11-28 (bench/RESULTS.md, "Issue 26, session 22"); the wall time is the load's
 test: $(STAMP)
 	QT_QPA_PLATFORM=offscreen MPLBACKEND=Agg $(PY) -m pytest -q -n 2 --dist loadfile
 

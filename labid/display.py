@@ -4,7 +4,8 @@ Computed from raw records and stored results, never written back: the
 averaged hammer spectrum, the scalogram of a wave record with the analysis'
 wavelet and band, SAFE group-velocity curves for nominal or identified
 constants, the model frequencies of an identification. Picks, velocities and
-constants themselves always come from the workflows' results.
+constants themselves always come from the workflows' results. ``hammer_checks``: the force
+of each hit with its double-hit and overload flags, per-channel H1 and coherence.
 """
 from __future__ import annotations
 
@@ -16,6 +17,8 @@ import numpy as np
 from drivers.protocol import Record
 from engine import modal, safe, waves
 from engine.laminate import Laminate
+
+from .workflows.acquisition import double_hit
 
 
 def average_spectrum(records: Sequence[Record]) -> tuple[np.ndarray, np.ndarray, str] | None:
@@ -85,3 +88,52 @@ def parameters_of(identification: Mapping | None) -> dict[str, float]:
     """``{name: value}`` of an identification result ({} if none)."""
     params = (identification or {}).get("parameters") if isinstance(identification, Mapping) else None
     return {n: float(p["value"]) for n, p in (params or {}).items() if isinstance(p, Mapping) and "value" in p}
+
+
+@dataclass(frozen=True)
+class HammerChecks:
+    """What a technician checks before trusting the hits of a run (issue 26).
+
+    Per hit (in the run's order): its name, the force trace in N on ``times_s`` (s after the
+    trigger), the peak force (N), a double-hit flag (two pulses above 10 % of the peak
+    more than 0.5 ms apart, ``workflows.acquisition.double_hit``) and the channels that
+    overloaded. Per response channel, over all the hits: |H1| in dB re 1 (unit)/N (``unit``:
+    the channel's unit) and the ordinary coherence (None for a single hit), on
+    ``frequencies_hz`` up to 0.4 x the rate (the anti-alias band)."""
+
+    hits: tuple[str, ...]
+    times_s: np.ndarray
+    force_n: tuple[np.ndarray, ...]
+    peak_n: tuple[float, ...]
+    double_hit: tuple[bool, ...]
+    overload: tuple[tuple[str, ...], ...]
+    frequencies_hz: np.ndarray
+    frf_db: dict
+    coherence: dict | None
+    units: dict
+
+
+def hammer_checks(records: Sequence[Record], max_points: int = 4000) -> HammerChecks | None:
+    """The checks of the hammer ``records`` (None without a record or a force channel)."""
+    if not records:
+        return None
+    r0 = records[0]
+    force = next((c.name for c in r0.channels if c.kind == "force"), None)
+    if force is None:
+        return None
+    acc = [c.name for c in r0.channels if c.name != force]
+    fs = r0.timing.rate_hz
+    F = np.array([r.scaled(force) for r in records])
+    x = np.array([[r.scaled(c) for c in acc] for r in records])
+    spec = modal.spectra(x, fs, F, pretrigger=r0.timing.pretrigger, channels=acc)
+    keep = spec.frequencies_hz <= 0.4 * fs
+    step = max(1, int(keep.sum()) // max_points)
+    f = spec.frequencies_hz[keep][::step]
+    frf = {c: 20.0 * np.log10(np.maximum(np.abs(spec.frf[i][keep][::step]), 1e-300)) for i, c in enumerate(acc)}
+    coh = None if spec.coherence is None or len(records) < 2 else {
+        c: np.asarray(spec.coherence[i][keep][::step], float) for i, c in enumerate(acc)}
+    return HammerChecks(tuple(str(r.meta.get("shot", i + 1)) for i, r in enumerate(records)), r0.time(),
+                        tuple(F), tuple(float(np.max(np.abs(v))) for v in F),
+                        tuple(double_hit(v, fs) for v in F),
+                        tuple(tuple(n for n, ov in r.overload.items() if ov) for r in records),
+                        f, frf, coh, {c: r0.channel(c).unit for c in acc})

@@ -55,10 +55,10 @@ from .inference import (METHODS, check_prior, connect_scheduler, default_params_
 from .workflows.acquisition import AcquisitionSession, LiveSession
 from .workflows.analysis import (Analysis, AnalysisSettings, analyze_store, modal_features, modal_table,
                                  store_analysis)
-from .display import (Scalogram, average_spectrum, model_frequencies, model_group_velocity, parameters_of,
-                      scalogram)
+from .display import (HammerChecks, Scalogram, average_spectrum, hammer_checks, model_frequencies,
+                      model_group_velocity, parameters_of, scalogram)
 from .base.errors import UserError
-from .workflows.damping import damping_summary
+from .workflows.damping import damping_summary, family_of
 from .inputs.features import features_text, specimen_of
 from .inputs import calibration as calib
 from .io import exporters, importers
@@ -78,13 +78,13 @@ __all__ = [
     "spectrum_indicator", "toggle_peak", "stored_settings", "analysed_spectra",
     # identification and diagnosis (labid.inference)
     "Identification", "identification_of", "METHODS", "minima_summary", "default_params_for", "select_data", "load_features_file",
-    "specimen_for_features", "parse_start", "parse_names", "check_prior", "connect_scheduler",
+    "specimen_for_features", "parse_start", "parse_names", "check_prior", "connect_scheduler", "family_of",
     "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
     # import, export, calibration (labid.io)
     "import_records", "export_run", "write_result_tables", "calibration_status", "run_calibration",
     "warn_calibration",
     # display (labid.display)
-    "Scalogram", "average_spectrum", "scalogram", "model_group_velocity", "model_frequencies", "parameters_of",
+    "Scalogram", "average_spectrum", "scalogram", "HammerChecks", "hammer_checks", "model_group_velocity", "model_frequencies", "parameters_of",
 ]
 
 #: where the workflows' results sit under /results (first match wins)
@@ -130,7 +130,7 @@ def open_run(path: str | Path, max_shots: int = 0) -> RunData:
             if name == HISTORY_GROUP:                 # older results: read on request (result_history)
                 continue
             try:
-                rd.results[name] = decode_result(st.read_group(name))
+                rd.results[name] = st.read_result(name)     # the JSON copy alone when there is one
             except (KeyError, ValueError, OSError):
                 continue
     return rd

@@ -4,12 +4,15 @@ One seam for every command and service: ``progress.bar(total, desc)`` is a
 ``tqdm`` bar on stderr (the field's library; nothing hand-written), or a no-op
 object with the same ``update``/``close``/context-manager surface when quiet or
 when stderr is not a terminal and ``LABID_PROGRESS`` is not set to 1. The summary
-a command prints on stdout is never affected.
+a command prints on stdout is never affected. ``watch_fit(blocks, desc)``: a fit's model
+evaluations and chi^2 on a bar; ``counter(n, desc)``: k of n starts finished.
 """
 from __future__ import annotations
 
 import os
 import sys
+from dataclasses import replace
+from typing import Any
 
 _QUIET = False
 
@@ -60,3 +63,46 @@ def note(line: str) -> None:
     if not _QUIET:
         sys.stderr.write(line.rstrip("\n") + "\n")
         sys.stderr.flush()
+
+
+def watch_fit(blocks: list, desc: str) -> tuple[list, Any]:
+    """The data blocks of a fit (``engine.fit.DataBlock``-like: ``observed``, ``sigma``,
+    ``predict``, ``jacobian``), wrapped so that each model evaluation advances a bar on
+    stderr showing the evaluations and chi^2 = sum ((predicted - observed) / sigma)^2 of the
+    last evaluation of every block; and the bar (close it when the fit ends). Unpaired
+    predictions (NaN) are left out of chi^2. Without progress the blocks are returned as
+    they are."""
+    b = bar(None, desc, unit="eval")
+    if isinstance(b, _Null):
+        return list(blocks), b
+    import numpy as np     # here: labid --help imports this module and must not pay numpy's import
+    last: dict[int, float] = {}
+
+    def wrap(i: int, block, fn, returns_pair: bool):
+        if fn is None:
+            return None
+
+        def inner(*a, **kw):
+            out = fn(*a, **kw)
+            pred = out[0] if returns_pair else out
+            r = (np.asarray(pred, float) - np.asarray(block.observed, float)) / np.asarray(block.sigma, float)
+            last[i] = float(np.nansum(r * r))
+            b.update(1)
+            b.set_postfix_str(f"chi^2 {sum(last.values()):.4g}")
+            return out
+        return inner
+
+    return [replace(blk, predict=wrap(i, blk, blk.predict, False), jacobian=wrap(i, blk, blk.jacobian, True))
+            for i, blk in enumerate(blocks)], b
+
+
+def counter(total: int, desc: str, unit: str = "start"):
+    """``done(k, n)`` for work reported as k of n finished (multi-start, cluster starts): a
+    bar on stderr, and the bar (close it at the end)."""
+    b = bar(total, desc, unit=unit)
+    seen = {"k": 0}
+
+    def done(k: int, n: int) -> None:
+        b.update(max(k - seen["k"], 0))
+        seen["k"] = k
+    return done, b

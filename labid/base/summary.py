@@ -261,8 +261,9 @@ def budget_text(b: Mapping[str, Any]) -> str:
         unit, sc = display_unit(n)
         unit = f" {unit}" if unit else ""
         rel = f" ({100 * c['U_rel']:.2g} %)" if c.get("U_rel") is not None else ""
-        lines.append(f"  {n:>7} = {c['value'] * sc:10.4g} +- {c['U'] * sc:.3g}{unit}{rel}  "
-                     f"[u_c {c['u_combined'] * sc:.3g}: type A {c['u_type_a'] * sc:.3g}, type B {c['u_type_b'] * sc:.3g}]")
+        lines.append(f"  {n:>7} = {c['value'] * sc:10.4g}{unit}, U (k={b.get('coverage_factor', 2.0):g}) "
+                     f"{c['U'] * sc:.3g}{unit}{rel}  [u_c {c['u_combined'] * sc:.3g}: type A "
+                     f"{c['u_type_a'] * sc:.3g}, type B {c['u_type_b'] * sc:.3g}]")
         if not math.isfinite(c["u_combined"]):
             lines.append("           no budget: the fit does not determine this constant (infinite type-A std)")
             continue
@@ -272,5 +273,7 @@ def budget_text(b: Mapping[str, Any]) -> str:
     inp = ", ".join(f"{x['name']} {x['u']:.3g} {x['unit']}{'' if x['source'] == 'specimen' else ' (default)'}"
                     for x in b["inputs"])
     lines.append(f"  inputs (standard uncertainties): {inp}")
+    if any(x["source"] != "specimen" for x in b["inputs"]):
+        lines.append("  (default): assumed, not declared in the specimen's [uncertainty] table (docs/uncertainty.md)")
     lines += [f"  note: {n}" for n in b["notes"]]
     return "\n".join(lines) + "\n"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import sys
 
 from .. import services
+from ..base import progress
 from .options import add_json_option
 
 
@@ -27,6 +28,10 @@ def register(sub) -> None:
 
 
 def run(args) -> dict:
+    if progress.enabled():      # ~5 s CPU on the demo run (the UFF 55 mode shapes are fitted): say so
+        progress.note(f"labid export: {args.run}: reading the shots"
+                      + (", fitting the mode shapes and writing the UFF" if args.uff else "")
+                      + (", writing the CSV tables" if args.csv else ""))
     res = services.export_run(args.run, uff=args.uff, csv_dir=args.csv, binary=not args.ascii)
     if getattr(args, "json", None) != "-":
         w = sys.stdout.write

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import gc
 import os
+import signal
 import sys
 
 from ..base.errors import UserError
@@ -40,14 +41,24 @@ def run(args) -> None:
     except ImportError as e:
         raise UserError(f"PySide6 is not available ({e}); expected the Qt bindings to be installed") from None
     from ..gui.main_window import MainWindow
+    from ..gui.signals import CloseOnSignals
     app = QApplication.instance() or QApplication(["labid"])
-    win = MainWindow(args.run)
+    win = MainWindow()
     win.show()
+    win.run_opened.connect(lambda path: (sys.stderr.write(f"labid gui: opened {path}\n"), sys.stderr.flush()))
+    if args.run:            # read in a worker thread, with progress (issue 26)
+        win.open_run(args.run, background=True)
+    signals = CloseOnSignals(app, win)      # Ctrl-C and SIGTERM close the window cleanly
     app.exec()
+    signals.restore()
+    if signals.received() is not None:
+        sys.stderr.write(f"labid gui: closed on {signal.Signals(signals.received()).name}\n")
     # tear the widgets down while the interpreter is intact (PySide6/pyqtgraph can
     # crash when the garbage collector meets them during finalisation)
     win.deleteLater()
     del win
     app.processEvents()
     gc.collect()
+    # the exit code of labid.cli.main's other commands on SIGTERM (143) and Ctrl-C (130)
+    args.exit_code = {signal.SIGTERM: 143, signal.SIGINT: 130}.get(signals.received(), 0)
     return None

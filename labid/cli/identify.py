@@ -162,8 +162,8 @@ def summary(res: services.Identification) -> str:
         ok, why = res.status(n)
         flag = "" if ok else (f"   (not identified: {why})" if n in res.held or n not in ident else
                               f"   (not identified: {why}; "
-                              f"+-{100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
-        lines.append(f"  {n:>7} = {v * sc:10.4g} +- {s * sc:.3g}{unit}{flag}")
+                              f"u {100 * ident[n]['conditional_rel_std']:.2g} % if the others were known)")
+        lines.append(f"  {n:>7} = {v * sc:10.4g}{unit}, u (k=1, fit) {s * sc:.3g}{unit}{flag}")
     r = out.get("residual") or {}
     lines.append("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None))
     lines += [f"  note: {msg}" for msg in res.warnings]

@@ -130,7 +130,8 @@ class AcquisitionView(QWidget):
         self.trace_plot.addLegend(offset=(-5, 5), brush=pg.mkBrush(255, 255, 255, 210))
         self.spec_plot = pg.PlotWidget(title="amplitude spectra (last record)")
         self.spec_plot.setLabel("bottom", "frequency", "Hz")
-        self.spec_plot.setLabel("left", "level", "dB")
+        self.spec_plot.addLegend(offset=(-5, 5), brush=pg.mkBrush(255, 255, 255, 210))
+        self.spec_plot.setLabel("left", "level (dB re 1 unit of the channel: N, m/s², V)")
         for p in (self.trace_plot, self.spec_plot):
             p.setBackground("w")
             p.showGrid(x=True, y=True, alpha=0.3)
@@ -331,7 +332,8 @@ class AcquisitionView(QWidget):
             peak = float(np.max(np.abs(y))) or 1.0
             self.trace_plot.plot(d["t"], y / peak, pen=pg.mkPen(col, width=1),
                                  name=f"{name} (÷{peak:.3g} {d['units'][name]})")
-            self.spec_plot.plot(d["f"][1:], d["spectra"][name][1:], pen=pg.mkPen(col, width=1))
+            self.spec_plot.plot(d["f"][1:], d["spectra"][name][1:], pen=pg.mkPen(col, width=1),
+                                name=f"{name} (dB re 1 {d['units'][name]})")
         self.trace_plot.setLabel("left", "normalised signal")
         for name, ov in d["overload"].items():
             if name in self.lights:
@@ -369,11 +371,9 @@ class AcquisitionView(QWidget):
         if self.job is not None or (run and run == self._acquired_into):
             return      # acquiring, or just acquired here: the live view already shows it
         counts = {"hammer": 0, "wave": 0}
-        if run and Path(run).exists():
-            try:
-                counts.update(services.open_run(run, max_shots=0).counts)
-            except (UserError, OSError):
-                pass
+        snap = self.main.snapshot()         # the run read once (gui.snapshot)
+        if snap is not None:
+            counts.update(snap.run.counts)
         self.done = {k: int(counts.get(k, 0)) for k in ("hammer", "wave")}
         self.planned = dict(self.done)
         self.counter.setText(f"in the run file: {self.done['hammer']} hits · {self.done['wave']} wave shots")
@@ -384,10 +384,9 @@ class AcquisitionView(QWidget):
             empty_note(self.trace_plot, "no data yet: no shot recorded in this run")
             empty_note(self.spec_plot, "no data yet")
             return
-        try:
-            rec = services.shots(run, kind)[-1]
-        except (UserError, OSError, IndexError) as e:
-            self.main.message(f"cannot read the last {kind} shot of {run}: {e}", error=True)
+        rec = snap.last if snap is not None and snap.last_kind == kind else None
+        if rec is None:
+            self.main.message(f"cannot read the last {kind} shot of {run}", error=True)
             return
         self.show_record(display_record(kind, rec))
         self.trace_plot.setTitle(f"time traces: last stored {kind} record ({rec.meta.get('shot', '')})")

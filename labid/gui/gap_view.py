@@ -20,10 +20,11 @@ def _f(v, fmt=".3g") -> str:
 
 
 def _magnitude(e: dict) -> str:
-    """An effect's magnitude in engineering notation with its unit ('561 µm'; bare when unitless)."""
+    """An effect's magnitude in engineering notation with its unit ('561 µm'; '0.004 (ratio)' when
+    unitless, as the report says)."""
     unit = str(e.get("unit") or "")
     if unit in ("", "1"):
-        return _f(e.get("magnitude"))
+        return f"{_f(e.get('magnitude'))} (ratio)"
     if unit.isalpha() and len(unit) <= 2:          # m, s, kg, K: an SI prefix reads well
         return eng(e.get("magnitude"), unit, 3)
     return f"{_f(e.get('magnitude'))} {unit}"
@@ -44,7 +45,8 @@ class GapView(QWidget):
         self.where.setMinimumHeight(4 * self.where.fontMetrics().height())
         self.where.setAlignment(Qt.AlignTop | Qt.AlignLeft)
         self.table = QTableWidget(0, 6)
-        self.table.setHorizontalHeaderLabels(["rank", "effect", "magnitude", "gap after", "score", "detectable"])
+        self.table.setHorizontalHeaderLabels(["rank", "effect", "magnitude (unit)", "gap after (rms residual/σ)",
+                                              "score (0-1)", "detectable"])
         self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
         self.table.verticalHeader().setVisible(False)

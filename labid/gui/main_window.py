@@ -11,9 +11,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Callable
 
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import QTimer, Signal
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QPushButton, QTabWidget)
+from PySide6.QtWidgets import (QFileDialog, QLabel, QMainWindow, QProgressBar, QPushButton, QTabWidget)
 
 from .. import services
 from ..base.errors import UserError
@@ -21,14 +21,16 @@ from ..base.jsonio import to_jsonable
 from ..report.certificate import write_report
 from ..base.summary import next_step
 from .acquisition_view import AcquisitionView
+from .checks_view import ChecksView
 from .gap_view import GapView
 from .identification_view import IdentificationView
 from .modes_view import ModesView
 from .setup_view import SetupView
+from .snapshot import Snapshot, load as load_snapshot
 from .waves_view import WavesView
 from .worker import Job
 
-TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap")
+TABS = ("Setup", "Acquisition", "Modes", "Waves", "Identification", "Gap", "Hammer checks")
 #: exclusive jobs after which the session state is saved in the run file
 AUTOSAVE_AFTER = ("acquisition", "analysis", "identification", "diagnosis")
 
@@ -36,7 +38,10 @@ AUTOSAVE_AFTER = ("acquisition", "analysis", "identification", "diagnosis")
 class MainWindow(QMainWindow):
     """``MainWindow(run_path=None)``: the lab panel; ``run_path`` opens an existing run."""
 
-    def __init__(self, run_path: str | None = None):
+    #: emitted with the run's path once it is open and the views restored
+    run_opened = Signal(str)
+
+    def __init__(self, run_path: str | None = None, background: bool = False):
         super().__init__()
         self.setWindowTitle("labid — lab panel")
         self.resize(1366, 768)
@@ -45,6 +50,8 @@ class MainWindow(QMainWindow):
         self._side_jobs: set[Job] = set()
         self.messages: list[tuple[str, bool]] = []
         self._mem_results: dict[str, dict] = {}
+        #: the run file read once (``gui.snapshot``), shared by the views until the run changes
+        self._snap: Snapshot | None = None
 
         self.setup = SetupView(self)
         self.acquisition = AcquisitionView(self)
@@ -52,8 +59,10 @@ class MainWindow(QMainWindow):
         self.waves = WavesView(self)
         self.identification = IdentificationView(self)
         self.gap = GapView(self)
+        self.checks = ChecksView(self)     # last: the stored tab indices of earlier sessions stay valid
         self.views = {"setup": self.setup, "acquisition": self.acquisition, "modes": self.modes,
-                      "waves": self.waves, "identification": self.identification, "gap": self.gap}
+                      "waves": self.waves, "identification": self.identification, "gap": self.gap,
+                      "checks": self.checks}
         self.tabs = QTabWidget()
         for title, w in zip(TABS, self.views.values()):
             self.tabs.addTab(w, title)
@@ -67,7 +76,11 @@ class MainWindow(QMainWindow):
         self.cancel_btn.clicked.connect(self.cancel_job)
         self.step_label = QLabel("")
         self.step_label.setStyleSheet("color: #1f4e79;")
+        self.progress_bar = QProgressBar()
+        self.progress_bar.setMaximumWidth(160)
+        self.progress_bar.setVisible(False)
         sb.addWidget(self.status_label, 1)
+        sb.addPermanentWidget(self.progress_bar)
         sb.addPermanentWidget(self.step_label)
         sb.addPermanentWidget(self.run_label)
         sb.addPermanentWidget(self.cancel_btn)
@@ -83,7 +96,7 @@ class MainWindow(QMainWindow):
             a.triggered.connect(slot)
             m.addAction(a)
         if run_path:
-            self.open_run(run_path)
+            self.open_run(run_path, background=background)
         else:
             self.update_step()
 
@@ -149,6 +162,10 @@ class MainWindow(QMainWindow):
         job.start()
         return job
 
+    def idle(self) -> bool:
+        """True when no job of this window (exclusive or side: opening, SAFE curves) is running."""
+        return self.job is None and not self._side_jobs
+
     def cancel_job(self) -> None:
         if self.job is not None:
             self.job.cancel()
@@ -156,50 +173,102 @@ class MainWindow(QMainWindow):
 
     # -- the run file -----------------------------------------------------------------------
     def set_run_path(self, path: str, reload: bool = True) -> None:
+        if str(path) != self.run_path:
+            self._snap = None
         self.run_path = str(path)
         self.run_label.setText(f"run: {Path(path).name}")
         self.acquisition.run_edit.setText(str(path))
         if reload:
             self.run_changed()
 
-    def open_run(self, path: str) -> bool:
-        """Open an existing run file and restore the views; a bad file shows a message."""
-        try:
-            rd = services.open_run(path)
-        except UserError as e:
-            self.message(str(e), error=True)
+    def open_run(self, path: str, background: bool = False) -> bool:
+        """Open an existing run file and restore the views; a bad file shows a message.
+        The file is read once (``gui.snapshot.load``); ``background``: in a worker thread with
+        progress in the status bar (File > Open, ``labid gui RUN.h5``), the views restored when
+        it is read (``run_opened`` path: ``self.opening`` is the job until then)."""
+        if self.busy():
+            self.message(f"{self.job.name} is running; open the run when it has finished", error=True)
             return False
-        except OSError as e:  # h5py oddities on a damaged file
-            self.message(f"{path}: cannot read the run file ({e})", error=True)
-            return False
+        if not background:
+            try:
+                snap = load_snapshot(path)
+            except UserError as e:
+                self.message(str(e), error=True)
+                return False
+            self._apply_opened(path, snap)
+            return True
+
+        def work(progress, should_stop):
+            return load_snapshot(path, progress)
+
+        def failed(msg: str) -> None:       # the job's one line is already in the status bar
+            self.opening = None
+            self.progress_bar.setVisible(False)
+
+        def done(snap: Snapshot) -> None:
+            self.opening = None
+            self.progress_bar.setVisible(False)
+            self._apply_opened(path, snap)
+
+        self.progress_bar.setRange(0, 0)
+        self.progress_bar.setVisible(True)
+        # a side job: the status bar's progress instead of Cancel; refused above while an
+        # exclusive job (acquisition, fit) runs
+        self.opening = self.start_job("opening run", work, done, on_progress=self._open_progress,
+                                      on_failed=failed, exclusive=False)
+        return self.opening is not None
+
+    #: the job reading a run opened in the background (None when none is)
+    opening: Job | None = None
+
+    def _open_progress(self, p) -> None:
+        k, n, what = p
+        self.progress_bar.setRange(0, n)
+        self.progress_bar.setValue(k)
+        self.status_label.setText(f"opening run: reading {what} ({k + 1}/{n})…")
+
+    def _apply_opened(self, path: str, snap: Snapshot) -> None:
+        """Restore the views from a run read once (GUI thread)."""
+        rd = snap.run
         state = services.session_state(rd)
         self.set_run_path(path, reload=False)
+        self._snap = snap
         self.setup.restore(state.get("setup", {}), rd.specimen_toml, rd.rig_toml)
         for key, view in self.views.items():
             if key != "setup" and hasattr(view, "restore"):
                 view.restore(state.get(key, {}))
-        self.run_changed()
+        self._reload_views()
         if "tab" in state:
             self.tabs.setCurrentIndex(int(state["tab"]))
-        overdue = self._overdue_calibrations(path)
+        overdue = self._overdue_calibrations(path, snap.overdue)
         if overdue:  # once per session per channel, as the CLI does
             self.message(f"opened {path}; calibration overdue: " + "; ".join(overdue), error=True)
         else:
             self.message(f"opened {path}")
-        return True
+        self.run_opened.emit(str(path))
+
+    def snapshot(self) -> Snapshot | None:
+        """The run file as the views show it, read once (``gui.snapshot``) and kept until the
+        run changes (``run_changed``, a stored result); None without a readable run file."""
+        if self._snap is None and self.run_path and Path(self.run_path).exists():
+            try:
+                self._snap = load_snapshot(self.run_path)
+            except (UserError, OSError):
+                return None
+        return self._snap
 
     @staticmethod
-    def _overdue_calibrations(path: str) -> list[str]:
+    def _overdue_calibrations(path: str, lines: list[str]) -> list[str]:
         """Channels of the run recorded past their calibration's due date, not yet warned about."""
-        try:
-            lines = services.run_calibration(path).get("overdue") or []
-        except (UserError, OSError, KeyError, ValueError):
-            return []
         return services.warn_calibration({"overdue": lines, "sheet": path}, prefix="labid gui",
                                          write=lambda s: None)
 
     def run_changed(self) -> None:
-        """The run file changed (new shots or results): let every view reload."""
+        """The run file changed (new shots or results): read it once more, let every view reload."""
+        self._snap = None
+        self._reload_views()
+
+    def _reload_views(self) -> None:
         for view in self.views.values():
             if hasattr(view, "reload"):
                 view.reload()
@@ -208,12 +277,9 @@ class MainWindow(QMainWindow):
     def update_step(self) -> None:
         """The current step of the run and the next one, in the status bar."""
         counts, names = {}, set(self._mem_results)
-        if self.run_path and Path(self.run_path).exists():
-            try:
-                rd = services.open_run(self.run_path, max_shots=0)
-                counts, names = rd.counts, names | set(rd.results)
-            except (UserError, OSError):
-                pass
+        snap = self.snapshot()
+        if snap is not None:
+            counts, names = snap.run.counts, names | set(snap.run.results)
         current, nxt = next_step(counts, names)
         self.step_label.setText(f"now: {current}  →  next: {nxt}")
 
@@ -222,13 +288,8 @@ class MainWindow(QMainWindow):
         """The results group ``name`` of the run file (JSON copy preferred), or None."""
         if name in self._mem_results:
             return self._mem_results[name]
-        if not self.run_path or not Path(self.run_path).exists():
-            return None
-        try:
-            return services.read_result(self.run_path, name)
-        except (UserError, OSError) as e:
-            self.message(str(e), error=True)
-            return None
+        snap = self.snapshot()
+        return None if snap is None else snap.run.results.get(name)
 
     def store_results(self, name: str, data: dict) -> bool:
         """Write ``data`` under /results/<name> (structured + a JSON copy)."""
@@ -243,6 +304,7 @@ class MainWindow(QMainWindow):
             self.message(f"{name}: kept in memory only (no run file)", error=True)
             return False
         self._mem_results.pop(name, None)
+        self._snap = None                   # read again when a view next asks
         try:
             services.store_result(self.run_path, name, data)
         except (UserError, OSError) as e:
@@ -253,13 +315,8 @@ class MainWindow(QMainWindow):
 
     def features(self) -> dict | None:
         """The measured features (CONTRACT section 2) of the run, or None."""
-        if not self.run_path or not Path(self.run_path).exists():
-            return None
-        try:
-            doc = services.stored_features(self.run_path)
-        except (UserError, OSError):
-            return None
-        return doc or None
+        snap = self.snapshot()
+        return (snap.features or None) if snap is not None else None
 
     def specimen_for_features(self, doc: dict):
         """The specimen a features document refers to (inline, path or built-in), else
@@ -287,6 +344,7 @@ class MainWindow(QMainWindow):
         self.start_job("analysis", work, self._analysis_done)
 
     def _analysis_done(self, out) -> None:
+        self._snap = None
         show_analysis(self, out)
         self.message("analysis done: " + analysis_summary(out))
         for v in (self.identification, self.gap):
@@ -296,6 +354,7 @@ class MainWindow(QMainWindow):
     def save_modal_picks(self, peaks) -> bool:
         if not self.run_path:
             return False
+        self._snap = None
         try:
             services.save_picks(self.run_path, peaks)
         except (UserError, OSError, ValueError) as e:
@@ -340,7 +399,7 @@ class MainWindow(QMainWindow):
     def _open_dialog(self) -> None:
         p, _ = QFileDialog.getOpenFileName(self, "Open run", "", "HDF5 run (*.h5);;All (*)")
         if p:
-            self.open_run(p)
+            self.open_run(p, background=True)
 
     def _report_dialog(self) -> None:
         if not self.run_path:

@@ -32,6 +32,9 @@ class WavesView(QWidget):
         self.image = pg.ImageItem()
         self.image.setColorMap(pg.colormap.get("viridis"))
         self.scalogram.addItem(self.image)
+        # the colour scale of |W| (issue 26), in the unit of the record's channel
+        self.colorbar = pg.ColorBarItem(colorMap=pg.colormap.get("viridis"), interactive=False, width=12)
+        self.colorbar.setImageItem(self.image, insert_in=self.scalogram.getPlotItem())
         self.ridge = pg.PlotDataItem(pen=pg.mkPen("w", width=2), symbol="o", symbolSize=4, symbolBrush="w")
         self.scalogram.addItem(self.ridge)
         self.velocity = plot("group velocity", ("frequency", "Hz"), ("group velocity", "m/s"))
@@ -82,12 +85,9 @@ class WavesView(QWidget):
         self._records = []
         self.shot_combo.blockSignals(True)
         self.shot_combo.clear()
-        if self.main.run_path:
-            try:
-                recs = services.shots(self.main.run_path, "wave", limit=10)
-            except Exception:  # noqa: BLE001 - no file / no shots: nothing to show
-                recs = []
-            for r in recs:
+        snap = self.main.snapshot()         # the run read once (gui.snapshot): up to 10 wave shots
+        if snap is not None:
+            for r in snap.waves:
                 for c in r.channels:
                     self._records.append((r, c.name))
                     self.shot_combo.addItem(f"{r.meta.get('shot', '?')} · {c.name}")
@@ -126,6 +126,9 @@ class WavesView(QWidget):
         sc = services.scalogram(rec, name, self._res, n_freqs=100)
         t, fmin, fmax = sc.times_s, float(sc.frequencies_hz[0]), float(sc.frequencies_hz[-1])
         self.image.setImage(sc.magnitude.T, autoLevels=True)
+        self.colorbar.setLevels((float(sc.magnitude.min()), float(sc.magnitude.max())))
+        unit = {"accelerometer": "m/s²", "force": "N"}.get(rec.channel(name).kind, "V")
+        self.colorbar.axis.setLabel("|W|", units=unit)     # SI prefix added by the axis: mV
         self.image.setRect(pg.QtCore.QRectF(t[0], fmin, t[-1] - t[0], fmax - fmin))
         self.info.setText(f"{sc.wavelet} · {fs / 1e6:g} MHz · {len(t)} samples")
         self.ridge.setData([], [])

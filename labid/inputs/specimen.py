@@ -42,7 +42,7 @@ UNCERTAINTY_KEYS = {"thickness", "length", "width", "density", "mass", "sensor_p
                     "source_position", "path_length"}
 #: ``[report]``: the report header (strings or numbers)
 REPORT_KEYS = {"lab", "client", "operator", "specimen_id", "method", "temperature_c",
-               "suspension", "revision"}
+               "suspension", "revision", "report_number", "received", "condition", "deviations", "limits"}
 
 
 def unit_slip(name: str, value: float, key: str, src: str | None = None) -> None:
@@ -199,10 +199,26 @@ def _optional_tables(doc: Mapping[str, Any], src: str) -> None:
             raise UserError(f"value {rep!r}: expected a table of report fields", file=src, key="report")
         check_keys(rep, REPORT_KEYS, "report.", src)
         for k, v in rep.items():
+            if k == "limits":           # {constant: [low, high]} in SI, the statement of conformity
+                check_limits(v, src)
+                continue
             if isinstance(v, bool) or not isinstance(v, (str, int, float)):
                 raise UserError(f"value {v!r}: expected a string or a number", file=src, key=f"report.{k}")
             if isinstance(v, str) and len(v) > 500:
                 raise UserError(f"{len(v)} characters: expected at most 500", file=src, key=f"report.{k}")
+
+
+def check_limits(lim: Any, src: str) -> None:
+    """``[report.limits]``: ``NAME = [low, high]`` in SI units (a side may be ``nan``: open)."""
+    if not isinstance(lim, Mapping):
+        raise UserError(f"value {lim!r}: expected a table NAME = [low, high] (SI units)", file=src,
+                        key="report.limits")
+    for n, v in lim.items():
+        ok = (isinstance(v, list) and len(v) == 2
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v))
+        if not ok or (v[0] == v[0] and v[1] == v[1] and v[0] > v[1]):
+            raise UserError(f"value {v!r}: expected [low, high] in SI units, low <= high (nan: no limit)",
+                            file=src, key=f"report.limits.{n}")
 
 
 def specimen_from_dict(doc: Mapping[str, Any], src: str = "<inline>") -> Specimen:

@@ -41,6 +41,12 @@ def img(b64: str, alt: str) -> str:
     return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{b64}">'
 
 
+def figure(b64: str, number: int, caption: str) -> str:
+    """A numbered figure with its caption (``Figure n. caption``)."""
+    return (f'<figure>{img(b64, f"Figure {number}")}<figcaption><b>Figure {number}.</b> '
+            f'{html.escape(caption)}</figcaption></figure>')
+
+
 def fig_spectrum(rd: RunData, feats: dict) -> str | None:
     spec = lookup(rd.results, ("analysis/spectrum", "analysis/modal/spectrum", "modal/spectrum"))
     if isinstance(spec, dict) and "frequencies_hz" in spec:
@@ -89,7 +95,9 @@ def fig_scalogram(rd: RunData, feats: dict) -> str | None:
     t, freqs, Wm = sc.times_s, sc.frequencies_hz, sc.magnitude
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(9, 3.6))
-    ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
+    mesh = ax.pcolormesh(t * 1e6, freqs / 1e3, Wm, shading="auto", cmap="viridis")
+    unit = {"accelerometer": "m/s²", "force": "N"}.get(rec.channel(name).kind, "V")
+    fig.colorbar(mesh, ax=ax, pad=0.01, label=f"|CWT| ({unit})")
     if isinstance(ridge, dict) and "times_s" in ridge:
         ax.plot(np.asarray(ridge["times_s"]) * 1e6, np.asarray(ridge["frequencies_hz"]) / 1e3, "w.-",
                 ms=3, lw=0.8, label="picked arrival ridge")

@@ -22,10 +22,9 @@ Schema ``labid_schema = 1`` (NeXus-style ``NX_class`` and ``units`` attributes):
     /results               NXcollection: processing/identification (``write_group``)
     /results/history/<name>/<n>  older identifications/diagnoses (labid.runresults; newest: /results/<name>)
 
-Crash safety: shots are written in HDF5 SWMR mode (``libver='latest'``), whose
-ordered metadata writes keep the file readable whatever the moment the writer
-dies. A shot counts only once its row of ``committed`` is written and flushed;
-rows past it (a shot cut short) are dropped on reopening.
+Crash safety: shots are written in HDF5 SWMR mode (``libver='latest'``), whose ordered metadata
+writes keep the file readable whatever the moment the writer dies. A shot counts only once its row
+of ``committed`` is written and flushed; rows past it (a shot cut short) are dropped on reopening.
 
 One writer at a time (issue 15): an ``"a"`` open takes the advisory lock
 ``RUN.h5.lock`` (``labid.store.lock``) and a second writer is refused in one line
@@ -64,7 +63,7 @@ from .h5repair import is_consistency_flag_error, repair
 from .lock import WriterLock
 from .readonly import open_read_only
 from .tables import read_records
-from .tree import decode_result, json_default, read_tree, replace_group, write_tree
+from .tree import decode_result, json_default, read_json_copy, read_tree, replace_group, write_tree
 from .validate import check_run, damaged, reading
 
 #: suffixes of the temporary files a writer makes beside the run (removed under the lock)
@@ -495,6 +494,7 @@ class RunStore:
             return read_tree(self._f[full])
 
     def read_result(self, path: str) -> Any:
-        """The result under ``/results/<path>`` as ``write_result`` wrote it: its JSON copy
-        when it has one, else the nested dict of ``read_group``. KeyError if absent."""
-        return decode_result(self.read_group(path))
+        """``/results/<path>``: its JSON copy when it has one (read alone), else ``read_group``'s."""
+        with self._reading():
+            got = read_json_copy(self._f.get(f"results/{path.strip('/')}"))
+        return got if got is not None else decode_result(self.read_group(path))

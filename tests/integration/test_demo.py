@@ -36,7 +36,7 @@ def test_demo_end_to_end(tmp_path, capsys):
         assert (tmp_path / "demo" / res["files"][key].split("/")[-1]).stat().st_size > 0
     html = (out / "report.html").read_text()
     assert "data:image/png;base64," in html
-    assert "Uncertainty budget" in html and "expanded U (k=2)" in html     # the certificate's GUM budget
+    assert "Uncertainty budget" in html and "expanded U (k = 2)" in html     # the certificate's GUM budget
     # section 6: waves only, a tone-burst pitch-catch run on the aluminium plate (edge
     # reflections, crosstalk, sensor response): E and G within 1 % of the truth
     al = res["waves_only_aluminium"]

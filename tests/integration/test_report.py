@@ -60,7 +60,7 @@ def test_report_is_self_contained_and_notes_missing_sections(run_file):
     # nothing fetched from elsewhere
     assert not re.search(r'(src|href)="(?!data:)', html)
     assert "CFRP [0/+45/-45]2s" in html and "12 [0, 45, -45" in html
-    assert "Shots: 2 hammer, 0 wave" in html
+    assert "2 hammer hits, 0 wave shots" in html
     for note in ("no wave shots in this run", "no group velocities in this run",
                  "no identification in this run", "no gap diagnosis in this run",
                  "no resonance picks stored"):
@@ -86,8 +86,10 @@ def test_report_shows_stored_results(run_file):
                             "score": 0.9}]}
         st.write_group("diagnosis", {"json": json.dumps(gap)})
     html = build_report(run_file)
-    # E1 130 GPa, u = 2.6 GPa, U = k u = 5.2 GPa (k = 2) = 4 %, against the specimen file's 136.7 GPa
-    assert "130.0 GPa" in html and "2.6 GPa" in html and "5.2 GPa" in html and "4 %" in html
+    # E1 130 GPa: U (k = 2) is the budget's 6.8 GPa = 5.2 %, beside u_A = 2.6 GPa and
+    # u_B = sqrt(3.4^2 - 2.6^2) = 2.19 GPa; k u_A = 5.2 GPa (a second U) appears nowhere
+    assert "130.0 GPa" in html and "<b>6.8 GPa</b>" in html and "5.2 %" in html and "5.2 GPa" not in html
+    assert "<td>2.6 GPa</td><td>2.2 GPa</td>" in html
     assert "136.7 GPa" in html
     assert "Uncertainty budget" in html and "thickness" in html and "2.2 GPa" in html and "6.8 GPa" in html
     assert "Verdict: sensor_mass" in html and "modal:band:low" in html
@@ -120,7 +122,7 @@ def test_constants_of_each_data_set_side_by_side(run_file):
             st.write_group(name, {"json": json.dumps({"parameters": {"E1": {"value": e1, "std": 1e9}},
                                                       "converged": True})})
     html = build_report(run_file)
-    assert "By data set (value ± u):" in html and "Appendix A. Constants by data set" in html
+    assert "By data set (value ± u, type A only):" in html and "Appendix A. Constants by data set" in html
     for text in ("130.0 GPa ± 1.0 GPa", "131.0 GPa ± 1.0 GPa", "125.0 GPa ± 1.0 GPa", "modal data", "waves data"):
         assert text in html
 
@@ -148,7 +150,7 @@ def test_certificate_fields_from_the_report_table(tmp_path):
 def test_missing_report_table_is_said_not_fatal(run_file):
     html = build_report(run_file)
     assert "no [report] table in the specimen or rig file" in html
-    assert "Signatures" in html and "temperature" in html
+    assert "Authorisation" in html and "temperature" in html
 
 
 def test_uncertainty_statement_and_long_tables_in_an_appendix(run_file):
@@ -169,11 +171,13 @@ def test_uncertainty_statement_and_long_tables_in_an_appendix(run_file):
     # k = 2: U(E1) = 84 MPa = 0.084 GPa, printed in the value's prefix
     assert "136.7 GPa" in html and "0.042 GPa" in html and "0.084 GPa" in html
     assert "coverage factor k = 2" in html and "does not cover model-form errors" in html
-    assert "χ² = 30.1 for 33 degrees of freedom, p = 0.61: consistent" in html
+    # chi^2/nu = 30.1/33 = 0.912, p = 0.61: neither tail; the reading names both ways
+    assert "χ² = 30.1 for ν = 33 degrees of freedom, χ²/ν = 0.912 (probability of a larger χ²: p = 0.61)" in html
+    assert "χ²/ν ≈ 1" in html and "sigmas are too large" in html and "too small or the model" in html
     assert "held" in html and "1550 kg/m³" in html and "G13 weakly constrained" in html
     assert "(1,1) torsion" in html and "+1.00 %" in html and "predicted mode without a peak" in html
     # the 39-row sigma table is in an appendix, after the signatures
-    body, appendix = html.split("7. Signatures", 1)
+    body, appendix = html.split("8. Authorisation", 1)
     assert "Appendix A. Resonance picks and their σ" in appendix and "1500.000" not in body
     assert "39 resonances picked, 50.0 Hz to 1.500 kHz" in body
     assert appendix.count("<tr>") >= 40
@@ -187,3 +191,55 @@ def test_no_constant_in_plain_e_notation(run_file):
     html = build_report(run_file)
     text = re.sub(r"<[^>]+>|data:image/png;base64,[A-Za-z0-9+/=]+", " ", html)
     assert not re.search(r"\d\.\d+e[+-]\d\d", text), re.findall(r".{30}\d\.\d+e[+-]\d\d.{10}", text)
+
+
+def test_statement_of_conformity_follows_the_decision_rule(tmp_path):
+    """value ± U (k = 2) against [report.limits]: inside -> conforms, wholly outside -> does not
+    conform, straddling a limit -> no statement (ILAC-G8 guarded acceptance)."""
+    run = _run_with_report_table(tmp_path / "c.h5", "[report]\nlab = 'L'\n[report.limits]\n"
+                                 "E1 = [120e9, 140e9]\nG12 = [5.5e9, nan]\nE2 = [8.5e9, 12e9]\n")
+    with RunStore(run, "a") as st:
+        st.write_group("identification", {"json": json.dumps({"converged": True, "parameters": {
+            "E1": {"value": 130e9, "std": 3e9, "identified": True}, "G12": {"value": 5e9, "std": 0.1e9, "identified": True},
+            "E2": {"value": 9e9, "std": 0.5e9, "identified": True}}})})
+    html = build_report(run)
+    rows = dict(re.findall(r"<tr><td>(E1|G12|E2)</td><td>[^<]*</td><td>[^<]*</td><td><b>([^<]*)</b></td></tr>",
+                           html))
+    # E1: 124..136 GPa within 120..140; G12: 4.8..5.2 below 5.5; E2: 8..10 straddles 8.5
+    assert rows == {"E1": "conforms", "G12": "does not conform", "E2": "no statement: value ± U straddles a limit"}
+
+
+def test_one_mode_label_per_peak_in_every_table(run_file):
+    """The picks, the pairing and the damping appendices give the identified model's label for
+    a peak, even where the analysis (nominal model) labelled it otherwise."""
+    f = [50.0 + 30.0 * i for i in range(14)]
+    nominal_labels = ["(2,1)/(0,3)"] + [f"({i},1)" for i in range(1, 14)]
+    with RunStore(run_file, "a") as st:
+        st.write_group("analysis", {"features": {"json": json.dumps({
+            "modal": {"frequencies_hz": f, "sigma_hz": [0.01] * 14},
+            "damping": {"modes": [{"frequency_hz": x, "label": lab, "loss_factor": 0.01}
+                                  for x, lab in zip(f, nominal_labels)],
+                        "families": {}, "all": {}}})}})
+        st.write_group("identification", {"json": json.dumps({
+            "parameters": {"E1": {"value": 1.3e11, "std": 1e9}}, "converged": True,
+            "pairing": [{"peak": i, "measured_hz": x, "mode_index": i, "family": "(2,1)" if i == 0 else f"({i},1)",
+                         "predicted_hz": x} for i, x in enumerate(f)]})})
+    html = build_report(run_file)
+    assert "(2,1)/(0,3)" not in html
+    # peak 1 at 50 Hz is (2,1) in the picks, the pairing and the loss-factor appendices
+    assert html.count("<td>1</td><td>50.000</td><td>10.0 mHz</td><td>(2,1)</td>") == 1
+    assert "<td>1</td><td>50.000</td><td>1</td><td>(2,1)</td>" in html
+    assert "<td>50.000</td><td>(2,1)</td><td>0.01</td>" in html
+
+
+def test_report_limits_mistakes_are_one_line():
+    import tomllib
+    from labid.base.errors import UserError
+    from labid.inputs.specimen import specimen_from_dict
+    doc = tomllib.loads(_spec_text() + "\n[report.limits]\nE1 = [145e9, 130e9]\n")
+    with pytest.raises(UserError, match=r"s\.toml: report\.limits\.E1: value \[145000000000\.0, 130000000000\.0\]: "
+                                        r"expected \[low, high\] in SI units, low <= high"):
+        specimen_from_dict(doc, "s.toml")
+    doc = tomllib.loads(_spec_text() + "\n[report]\nlimits = 3\n")
+    with pytest.raises(UserError, match=r"report\.limits: value 3: expected a table NAME = \[low, high\]"):
+        specimen_from_dict(doc, "s.toml")

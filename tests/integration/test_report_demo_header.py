@@ -28,7 +28,7 @@ def test_demo_report_header(tmp_path):
     html = build_report(run)
     head = _header(html)
     assert head["Laboratory"] == "labid demo (simulated rig)"
-    assert head["Client"] == "none: a demonstration on simulated data"
+    assert head["Customer"] == "none: a demonstration on simulated data"
     assert head["Operator"] == "labid demo (automated run, no operator)"
     assert head["Specimen ID"] == "DEMO-CFRP-12PLY"
     assert head["Specimen"] == "CFRP [0/+45/-45]2s, 1.6 mm"

@@ -37,12 +37,14 @@ def win(main_window):
     return main_window
 
 
-def open_from_menu(win, monkeypatch, path) -> None:
+def open_from_menu(win, qtbot, monkeypatch, path) -> None:
     """File > Open run…, the dialog answering ``path``."""
     monkeypatch.setattr(mw.QFileDialog, "getOpenFileName", staticmethod(lambda *a, **k: (str(path), "")))
     menu = next(a.menu() for a in win.menuBar().actions() if a.text() == "&File")
     action = next(a for a in menu.actions() if a.text() == "&Open run…")
-    action.trigger()
+    action.trigger()                 # the run is read in a worker thread (issue 26): wait for it
+    if win.opening is not None:
+        qtbot.waitSignal(win.opening.ended, timeout=900_000).wait()
     QApplication.processEvents()
 
 
@@ -52,10 +54,10 @@ def test_damaged_run_from_the_file_menu(win, qtbot, monkeypatch, tmp_path, how):
     monkeypatch.setattr(sys, "excepthook", lambda *a: hooked.append(a))
     good = small_run(tmp_path / "good.h5", shots=2)
     bad = damaged(good, tmp_path / "bad.h5", how)
-    open_from_menu(win, monkeypatch, good)
+    open_from_menu(win, qtbot, monkeypatch, good)
     assert win.messages[-1] == (f"opened {good}", False) and win.run_path == str(good)
     n = len(win.messages)
-    open_from_menu(win, monkeypatch, bad)
+    open_from_menu(win, qtbot, monkeypatch, bad)
     new = win.messages[n:]
     assert len(new) == 1, new
     text, error = new[0]
@@ -67,6 +69,6 @@ def test_damaged_run_from_the_file_menu(win, qtbot, monkeypatch, tmp_path, how):
     assert win.acquisition.isEnabled() and win.identification.run_btn is not None
     win.tabs.setCurrentWidget(win.modes)
     win.modes.reload()
-    open_from_menu(win, monkeypatch, good)
+    open_from_menu(win, qtbot, monkeypatch, good)
     assert win.messages[-1] == (f"opened {good}", False)
     assert hooked == []
