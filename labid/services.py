@@ -54,6 +54,7 @@ from .display import (Scalogram, average_spectrum, model_frequencies, model_grou
                       scalogram)
 from .base.errors import Cancelled, UserError
 from .workflows.damping import damping_summary
+from .workflows import plan as planning
 from .inputs.features import features_text, specimen_of
 from .inputs import calibration as calib
 from .io import exporters, importers
@@ -73,7 +74,7 @@ __all__ = [
     "spectrum_indicator", "toggle_peak",
     # identification and diagnosis
     "select_data", "load_features_file", "specimen_for_features", "parse_start", "cancellable",
-    "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
+    "run_identification", "run_diagnosis", "run_of_features", "store_for_features", "plan_test",
     # import, export, calibration (labid.io)
     "import_records", "export_run", "write_result_tables", "calibration_status", "run_calibration",
     "warn_calibration",
@@ -505,6 +506,24 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
     identify's estimate of ``names`` (None: identify's default selection) from ``start``;
     ``estimate``: that identification's result dict when at hand (not recomputed)."""
     return diag.run_diagnosis(doc, base_dir, src, options, names=names, start=start, estimate=estimate)
+
+
+def plan_test(spec: Specimen | str, rig: Rig | str | None = None, compare: Sequence[Rig | str] = (), *,
+              progress: Callable[[str], None] | None = None, should_stop: ShouldStop | None = None,
+              **options) -> "planning.PlanResult":
+    """``labid plan`` and the setup view's Plan box (issue 25, ``labid.workflows.plan``): the
+    recommended test of ``spec`` (object, path or built-in name) on ``rig`` (None: the built-in
+    rig) and ``compare`` rigs; ``options``: the command's raw option values
+    (``labid.workflows.plan_inputs.parse_options``). The result has ``to_dict()`` (the
+    ``--json`` document), ``text()``, ``write_rig(path)`` and ``save_figure(path)``."""
+    spec = spec if isinstance(spec, Specimen) else load_specimen(spec)
+    rigs = [r if isinstance(r, Rig) else load_rig(r) for r in ([rig] if rig is not None else []) + list(compare)]
+    for r in rigs:
+        r.check_specimen(spec.length, spec.width)
+    opts = planning.parse_options(planning.material_of(spec)[1], **options)
+    return planning.plan_test(spec, rigs[0] if rig is not None else None, opts,
+                              compare=rigs[1:] if rig is not None else rigs, progress=progress,
+                              should_stop=should_stop)
 
 
 def run_of_features(features_file: str | Path) -> Path | None:

@@ -83,12 +83,15 @@ class DesignProblem:
 class Evaluation:
     """``cov`` (D, B, Pf, Pf) predicted relative covariance of the fitted constants per draw and
     layout; ``seen`` (D, M, B) modes measured; ``response`` (D, M, B) their response v;
-    ``type_a`` (D, B, Pf) the relative std from the data alone (no type-B inputs)."""
+    ``type_a`` (D, B, Pf) the relative std from the data alone (no type-B inputs);
+    ``parts``: name -> (D, B, Pf) variance each type-B input adds ('sensor masses' for the
+    accelerometers' together)."""
 
     cov: np.ndarray
     seen: np.ndarray
     response: np.ndarray
     type_a: np.ndarray
+    parts: dict = field(default_factory=dict)
 
     @property
     def std(self) -> np.ndarray:
@@ -144,6 +147,7 @@ def evaluate(prob: DesignProblem, sensors, taps, masses=None) -> Evaluation:
     # fixed inputs the same for every layout: held constants and the budget's inputs
     cols = [ms.jac[:, :, i] for i in prob.fixed] + [np.asarray(c, float) for c, _ in prob.inputs.values()]
     u = np.array(list(prob.fixed_u) + [float(uu) for _, uu in prob.inputs.values()], float)
+    parts = {}
     if cols:
         X = np.stack(cols, axis=-1)                                        # (D, M, nx)
         G = np.einsum("dmb,dmp,dmx->dbpx", w, Jf, X)
@@ -151,13 +155,15 @@ def evaluate(prob: DesignProblem, sensors, taps, masses=None) -> Evaluation:
             G = G + (Jw.T * prob.wave_weight) @ prob.wave_inputs
         A = Finv @ G
         cov = cov + (A * u ** 2) @ np.swapaxes(A, -1, -2)
+        parts = {n: A[..., k] ** 2 * u[k] ** 2 for k, n in enumerate(prob.input_names())}
     if meas.mass_u_rel > 0 and np.any(m_kg > 0):
         Xm = -0.5 * ms.phi2[:, :, S]                                       # (D, M, B, ns), per kg
         Gm = np.einsum("dmb,dmp,dmbs->dbps", w, Jf, Xm)
         Am = Finv @ Gm
         um = meas.mass_u_rel * m_kg
         cov = cov + (Am * um ** 2) @ np.swapaxes(Am, -1, -2)
-    return Evaluation(cov, seen, r, type_a)
+        parts["sensor masses"] = (Am ** 2 * um ** 2).sum(-1)
+    return Evaluation(cov, seen, r, type_a, parts)
 
 
 def criterion(ev: Evaluation, kind: str = "D") -> np.ndarray:

@@ -23,7 +23,7 @@ Units SI: Hz, m, kg, s; sensitivities per unit ln p (dimensionless).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
@@ -99,7 +99,8 @@ class ModalSet:
     ``names``: the constants of ``jac``'s columns; ``params``: each draw's constants;
     ``freqs`` (D, M) Hz; ``jac`` (D, M, P) d ln f / d ln p; ``amp`` (D, M, C) |w| at the
     points over the mode's peak |w| on the plate (0 for in-plane modes); ``phi2`` (D, M, C)
-    w^2 of the mass-normalised shape (1/kg); ``points`` (C, 2) m.
+    w^2 of the mass-normalised shape (1/kg); ``points`` (C, 2) m; ``first_modes``: the
+    ``engine.plate.Modes`` of the first draw (the nominal), for figures and labels.
     """
 
     names: tuple[str, ...]
@@ -109,6 +110,7 @@ class ModalSet:
     amp: np.ndarray
     phi2: np.ndarray
     points: np.ndarray
+    first_modes: object = field(default=None, repr=False, compare=False)
 
     @property
     def n_draws(self) -> int:
@@ -158,11 +160,12 @@ def modal_set(model, draws: Sequence[Mapping[str, float]], names: Sequence[str],
     jac = np.zeros((D, M, P))
     amp = np.zeros((D, M, C))
     phi2 = np.zeros((D, M, C))
-    params = []
+    params, first = [], None
     for d, p in enumerate(draws):
         if progress is not None:
             progress(f"modes at draw {d + 1}/{D}")
         modes = model.solve(M, params=dict(p), material=material)
+        first = modes if d == 0 else first
         dw2 = model.eigen_sensitivities(modes, list(names), params=dict(p), material=material)
         vals = np.array([p[n] for n in names])
         freqs[d] = modes.frequencies_hz
@@ -174,4 +177,4 @@ def modal_set(model, draws: Sequence[Mapping[str, float]], names: Sequence[str],
         amp[d] = np.where(ok[:, None], np.abs(w_pts) / np.where(ok, peak, 1.0)[:, None], 0.0)
         phi2[d] = w_pts ** 2
         params.append(dict(p))
-    return ModalSet(tuple(names), tuple(params), freqs, jac, np.clip(amp, 0.0, 1.0), phi2, pts)
+    return ModalSet(tuple(names), tuple(params), freqs, jac, np.clip(amp, 0.0, 1.0), phi2, pts, first)

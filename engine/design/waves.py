@@ -28,7 +28,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from ..laminate import Laminate
-from ..safe import dispersion
+from ..safe import dispersion, group_velocity
 from ..wavefeatures.band import default_wavelet, source_band
 from ..wavefeatures.predict import SourceModel
 from ..waves import ray_paths
@@ -64,7 +64,7 @@ class Velocities:
         return (1.0 - t) * tab[k] + t * tab[k + 1]
 
 
-def velocity_table(laminate: Laminate, freqs, directions=(0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0),
+def velocity_table(laminate: Laminate, freqs, directions=(0.0, 30.0, 60.0, 90.0),
                    modes: Sequence[str] = PACKET_MODES) -> Velocities:
     """SAFE group velocities at the laminate's constants (one dispersion solve per direction)."""
     f = np.asarray(freqs, float)
@@ -181,7 +181,7 @@ class WavePlan:
 
 def plan_geometry(vel: Velocities, length: float, width: float, directions: Sequence[float], wavelet, *,
                   margin: float = 0.02, near: float = 0.05, timing_s: float = 1e-7, floor_rel: float = 5e-4,
-                  n_grid: int = 11, band_hz: tuple[float, float] = (0.0, 0.0)) -> WavePlan:
+                  n_grid: int = 9, band_hz: tuple[float, float] = (0.0, 0.0)) -> WavePlan:
     """Source position, sign of each direction and far distances maximising the product of
     the legs' summed point weights (each direction informs its own constants: a leg without
     a usable point is no plan); each leg's best far distance for a source position."""
@@ -200,7 +200,7 @@ def plan_geometry(vel: Velocities, length: float, width: float, directions: Sequ
                                (width - margin - y0) / s if s > 1e-9 else ((y0 - margin) / -s if s < -1e-9 else np.inf))
                     if room < near + 0.02:
                         continue
-                    for far in np.linspace(near + 0.02, room, 8):
+                    for far in np.linspace(near + 0.02, room, 6):
                         leg = leg_points(vel, (x0, y0), ang % 360.0, near, float(far), length, width, wavelet)
                         sc = _score(leg, timing_s, floor_rel)
                         if cand is None or sc > cand[0]:
@@ -226,7 +226,7 @@ def wave_jacobian(laminate: Laminate, names: Sequence[str], params: Mapping[str,
     base = dict(params)
 
     def cg(lam, leg):
-        return dispersion(lam, np.asarray(leg.freqs), leg.direction_deg).mode("A0").group_velocity_m_s
+        return group_velocity(lam, np.asarray(leg.freqs), "A0", leg.direction_deg)
 
     for li, leg in enumerate(legs):
         if not leg.freqs:
