@@ -48,6 +48,9 @@ def register(sub) -> None:
     p.add_argument("--max-modes", type=int, default=60, metavar="N", help="modes in the model (default 60)")
     p.add_argument("--waves", default="auto", choices=("auto", "yes", "no"),
                    help="guided waves: only when they pay (auto), always planned, never")
+    p.add_argument("--fit", default="auto", choices=("auto", "wanted"),
+                   help="fit the wanted constants and those the data determine (auto, as labid identify), "
+                        "or the wanted ones only")
     p.add_argument("--seed", type=int, default=0, help="seed of the prior draws and random starts")
     add_json_option(p)
     p.set_defaults(func=run)
@@ -58,7 +61,7 @@ def run(args) -> dict:
         args.spec, args.rig, args.compare, progress=lambda msg: progress_mod.note(f"labid plan: {msg}"),
         want=args.want, target_u=args.target_u, prior=args.prior, budget=args.budget, grid=args.grid,
         margin=args.margin, sensors=args.sensors, draws=args.draws, criterion=args.criterion,
-        sigma_f=args.sigma_f, mass_u=args.mass_u, max_modes=args.max_modes, waves=args.waves, seed=args.seed)
+        sigma_f=args.sigma_f, mass_u=args.mass_u, max_modes=args.max_modes, waves=args.waves, fit=args.fit, seed=args.seed)
     if args.write_rig:
         result.write_rig(args.write_rig)
     if args.plot:

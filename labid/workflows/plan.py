@@ -115,7 +115,10 @@ class _Context:
 
     def fitted(self, layout: Layout, waves: _Waves | None = None) -> tuple[int, ...]:
         """The wanted constants and every other one the data alone give within HOLD_REL
-        (the least determined is held, then the rest judged again)."""
+        (the least determined is held, then the rest judged again); with ``fit = 'wanted'``
+        the wanted ones only."""
+        if self.options.fit == "wanted":
+            return tuple(i for i, n in enumerate(self.names) if n in self.want)
         fit = list(range(len(self.names)))
         while True:
             ev = evaluate(self.problem(fit, waves), [list(layout.sensors)], [layout.tap], self.masses)
@@ -289,6 +292,11 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
     if len(draws) < options.draws:
         notes.append(f"{options.draws - len(draws)} prior draw(s) gave inadmissible constants and were skipped")
     mset = modal_set(model, draws, names, points, options.max_modes, mat_name, progress=say)
+    f_last = float(mset.freqs[0, -1])
+    if f_last < meas.band_hz():   # the model holds fewer modes than the band: fit the peaks below its last
+        meas = replace(meas, f_max_hz=f_last * (1.0 - 1e-3))
+        notes.append(f"the band holds more than the {options.max_modes} modes modelled: fit the peaks below "
+                     f"{meas.f_max_hz:.0f} Hz (labid analyze --modal-fmax, or more --max-modes)")
     ctx = _Context(spec, options, names, want, prior, mset, meas, masses)
     check_stop()
     # -- the modal layout ------------------------------------------------------------------

@@ -34,7 +34,9 @@ class PlanOptions:
     """``labid plan``'s choices (docs/plan.md). ``want``: constants to identify (None: every
     constant of the material); ``prior``: relative std per constant; ``budget``: 'none',
     'specimen' (its [uncertainty] table, defaults as ``labid identify``) or a TOML path with
-    an [uncertainty] table; ``waves``: 'auto' (only when they pay), 'yes', 'no'."""
+    an [uncertainty] table; ``waves``: 'auto' (only when they pay), 'yes', 'no'; ``fit``:
+    'auto' (the wanted constants and those the data determine, as ``labid identify``) or
+    'wanted' (only the wanted ones; the others held at nominal)."""
 
     want: tuple[str, ...] | None = None
     target_u: float = 0.02
@@ -51,6 +53,7 @@ class PlanOptions:
     mass_u: float = 0.1
     max_modes: int = 60
     waves: str = "auto"
+    fit: str = "auto"
     wave_timing_s: float = 1e-7
     wave_floor: float = 5e-4
     seed: int = 0
@@ -131,7 +134,8 @@ def measurement_of(rig: Rig, options: PlanOptions) -> Measurement:
         raise UserError("no device with role = \"hammer\" (or no [hammer]): a modal test needs one",
                         file=rig.source, key="devices")
     aa = dev.antialias
-    f_max = (aa.cutoff_ratio if aa.kind != "none" else 0.5) * dev.timing.rate_hz
+    # what labid analyze searches by default (0.4 x rate), within the anti-alias cutoff
+    f_max = min(0.4, aa.cutoff_ratio if aa.kind != "none" else 0.5) * dev.timing.rate_hz
     masses = [c.mass_kg for c in rig.accelerometers]
     return Measurement(sigma_rel=options.sigma_f, damping=rig.sim.modal_damping,
                        resolution_hz=dev.timing.rate_hz / dev.timing.samples, contact_s=rig.hammer.contact_s,
@@ -219,7 +223,7 @@ def _choice(v: str, choices: tuple[str, ...], option: str) -> str:
 def parse_options(material, *, want: str | None = None, target_u="2%", prior: str | None = None,
                   budget: str = "none", grid: int = 15, margin="0.02", sensors: int | None = None,
                   draws: int = 6, criterion: str = "D", sigma_f="0.1%", mass_u="10%", max_modes: int = 60,
-                  waves: str = "auto", seed: int = 0) -> PlanOptions:
+                  waves: str = "auto", fit: str = "auto", seed: int = 0) -> PlanOptions:
     """:class:`PlanOptions` from the command's raw values (strings such as '2%' or numbers),
     each bounded where it enters (``LIMITS``; a UserError names the option)."""
     try:
@@ -238,4 +242,5 @@ def parse_options(material, *, want: str | None = None, target_u="2%", prior: st
         draws=_int(draws, "draws", "--draws"), criterion=_choice(criterion, ("D", "A"), "--criterion"),
         sigma_f=parse_fraction(sigma_f, "--sigma-f", "sigma_f"), mass_u=parse_fraction(mass_u, "--mass-u", "mass_u"),
         max_modes=_int(max_modes, "max_modes", "--max-modes"), waves=_choice(waves, ("auto", "yes", "no"), "--waves"),
+        fit=_choice(fit, ("auto", "wanted"), "--fit"),
         seed=_int(seed, "seed", "--seed"))
