@@ -29,10 +29,10 @@ from ..base.errors import Cancelled, UserError
 from ..inputs.rig import Rig, load_rig
 from ..inputs.specimen import Specimen
 from .budget import uncertainty_table
-from .plan_figure import save_plan_figure
+from .plan_figure import plan_png, save_plan_figure
 from .plan_inputs import (PlanOptions, budget_columns, constant_names, material_of, measurement_of, parse_options,
                           rig_layout)
-from .plan_rig import write_plan_rig
+from .plan_rig import plan_rig_text, write_plan_rig
 from .plan_summary import plan_text
 
 __all__ = ["PlanResult", "plan_test", "parse_options", "material_of", "IDENTIFIED_REL", "HOLD_REL", "WAVE_RATE_HZ", "WAVE_NEAR_M"]
@@ -69,12 +69,20 @@ class PlanResult:
         """The console summary (``labid.workflows.plan_summary``)."""
         return plan_text(self.doc)
 
+    def rig_text(self) -> str:
+        """The recommended rig file's text, validated (``labid.workflows.plan_rig``)."""
+        return plan_rig_text(self)
+
     def write_rig(self, path) -> str:
-        """Write the recommended rig file (``labid.workflows.plan_rig``); its text."""
+        """Write the recommended rig file; its text."""
         return write_plan_rig(self, path)
 
+    def figure_png(self) -> bytes:
+        """The plan's figure, PNG (``labid.workflows.plan_figure``)."""
+        return plan_png(self)
+
     def save_figure(self, path) -> None:
-        """Write the plan's figure as PNG (``labid.workflows.plan_figure``)."""
+        """Write the plan's figure as PNG."""
         save_plan_figure(self, path)
 
 

@@ -11,13 +11,14 @@ draws only with ``--plot``).
 """
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import numpy as np
 
 from ..base import atomic
 
-__all__ = ["plan_figure", "save_plan_figure", "NODAL_GRID"]
+__all__ = ["plan_figure", "plan_png", "save_plan_figure", "NODAL_GRID"]
 
 #: points per direction of the grid the nodal lines are drawn from
 NODAL_GRID = 81
@@ -91,13 +92,17 @@ def plan_figure(result):
     return fig
 
 
-def save_plan_figure(result, path: str | Path) -> None:
-    """Write the figure as PNG (atomically; a full or read-only disk is a UserError naming the file)."""
-    import io  # noqa: PLC0415
-    import matplotlib.pyplot as plt  # noqa: PLC0415 - already imported by plan_figure
+def plan_png(result, dpi: int = 100) -> bytes:
+    """The figure as PNG bytes."""
+    import matplotlib.pyplot as plt  # noqa: PLC0415 - imported by plan_figure already
 
     fig = plan_figure(result)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
+    fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
-    atomic.write_bytes(Path(path), buf.getvalue(), key="--plot")
+    return buf.getvalue()
+
+
+def save_plan_figure(result, path: str | Path) -> None:
+    """Write the figure as PNG (atomically; a full or read-only disk is a UserError naming the file)."""
+    atomic.write_bytes(Path(path), plan_png(result), key="--plot")

@@ -111,7 +111,7 @@ def _set_waves(doc, waves: dict) -> None:
         dev["samples"] = need
 
 
-def plan_rig_text(template_text: str, doc: dict) -> str:
+def _edited(template_text: str, doc: dict) -> str:
     """The template rig's TOML text with the plan ``doc`` (``PlanResult.to_dict()``) applied."""
     rig = tomlkit.parse(template_text)
     rec = doc["recommended"]
@@ -126,11 +126,17 @@ def plan_rig_text(template_text: str, doc: dict) -> str:
     return tomlkit.dumps(rig)
 
 
-def write_plan_rig(result, path: str | Path) -> str:
-    """Write the recommended rig (validated on the plan's specimen) to ``path``; its text."""
-    tpl = result.template
-    text = plan_rig_text(tpl.text, result.doc)
-    rig = rig_from_text(text, str(path))
+def plan_rig_text(result, src: str = "<planned rig>") -> str:
+    """The recommended rig's text for ``result`` (a ``PlanResult``), validated as a rig file
+    and on the plan's specimen."""
+    text = _edited(result.template.text, result.doc)
+    rig = rig_from_text(text, src)
     rig.check_specimen(result.specimen.length, result.specimen.width)
+    return text
+
+
+def write_plan_rig(result, path: str | Path) -> str:
+    """Write the recommended rig to ``path`` (atomically); its text."""
+    text = plan_rig_text(result, str(path))
     atomic.write_text(Path(path), text, key="--write-rig")
     return text

@@ -51,6 +51,12 @@ def plan_text(doc: dict) -> str:
         for n in miss:
             c = rec["constants"][n]
             out.append(f"  {n}: {_pct(c['std_rel'])} at best, limited by {_why(c, doc['constants'])}")
+    if w.get("recommended"):
+        mo = doc["recommended_modal_only"]["constants"]
+        lost = [n for n in doc["want"] if n in mo and mo[n]["std_rel"] > 0.10]
+        if lost:
+            vals = ", ".join(f"{n} {_pct(mo[n]['std_rel'])}" for n in lost)
+            out.append(f"  without the guided waves: {vals} (modal data alone cannot bring them below 10 %)")
     out.append("")
     out.append(f"modal test: band {meas['band_hz']:.0f} Hz (hammer and acquisition); the model's "
                f"{rec['modes_in_band']} modes in it (at most {meas['max_modes']}, --max-modes), peak sigma {100 * meas['sigma_rel']:.3g} %, "
@@ -58,6 +64,9 @@ def plan_text(doc: dict) -> str:
                f"(+-{100 * meas['mass_u_rel']:.3g} %)")
     heads = ["recommended"] + [r["label"] + (f" (#{r['rank']})" if "rank" in r else "") for r in rigs]
     cols = [rec] + rigs
+    if w.get("recommended"):   # what the same layout gives without the waves
+        heads.insert(1, "modal only")
+        cols.insert(1, doc["recommended_modal_only"])
     names = list(rec["constants"])
     width = max(14, *(len(h) + 2 for h in heads))
     out.append("constant  " + "".join(f"{h:<{width}}" for h in heads) + "all fitted, data alone")
