@@ -123,10 +123,12 @@ class Leg:
 #: the wavelets the analysis chooses from (``engine.wavefeatures.pipeline``: the paper's for
 #: the material, then cmor2-2, 2-1.5, 2-1, 1-1, 0.5-1), as (bandwidth B, centre C)
 WAVELETS = ((2.0, 2.0), (2.0, 1.5), (2.0, 1.0), (1.0, 1.0), (0.5, 1.0))
-#: a packet is measured where the wavelet's time std is at most 1/CLEAR_STDS of the clearance
-#: (4: on the demo's CFRP geometry, pencil 4 cm from an edge, sensors at 5 and 20 cm, it predicts
-#: 4 A0 points at 89-190 kHz where `labid analyze` measured 3 at 81-194 kHz; 3 would predict 5)
-CLEAR_STDS = 4.0
+#: a packet is measured where the wavelet's time std is at most 1/CLEAR_STDS of the clearance.
+#: Calibrated on what ``labid analyze`` measured from the simulated rig's CFRP records (edge
+#: reflections, noise; bench/RESULTS.md, issue 25): pencil 4 cm from an edge, sensors at 5 and
+#: 20 cm along 0 deg: 3 A0 points; source (92.5, 92.5) mm, sensors at 5 and 18.8 cm: 3 along
+#: 0 deg, 2 along 90 deg. 6 predicts 3, 3, 2; 4 predicted 4, 5, 3; 3 predicted 5, 6, 4.
+CLEAR_STDS = 6.0
 
 
 def leg_points(vel: Velocities, source, direction_deg: float, near: float, far: float, length: float,

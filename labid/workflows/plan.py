@@ -342,6 +342,10 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
             pays = options.waves == "yes" or any(
                 wstd[n]["meets_target"] or wstd[n]["std_rel"] <= 0.5 * modal_std[n]["std_rel"] for n in need)
             wave_doc.update(_waves_doc(got, options, pays))
+            if "nu12" in need and not wstd.get("nu12", {}).get("meets_target", True):
+                notes.append("nu12: the A0 velocities planned here hardly inform it; S0 velocities do "
+                             "(a symmetric source, e.g. a PZT pair driven 'symmetric', and labid analyze "
+                             "--with-s0), which this plan does not model")
             if pays:
                 waves, fit, prob = got, fit_w, prob_w
                 say("searching the layout with the waves' information")
