@@ -29,7 +29,9 @@ __all__ = ["DesignProblem", "Evaluation", "evaluate", "criterion", "CRITERIA", "
 
 #: added to the information's diagonal: a constant no data sees gets a relative std ~1e5
 RIDGE = 1e-10
-CRITERIA = ("D", "A")
+CRITERIA = ("MV", "D", "A")
+#: weight of the A term that breaks the ties of the MV criterion
+MV_TIE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -166,10 +168,15 @@ def evaluate(prob: DesignProblem, sensors, taps, masses=None) -> Evaluation:
     return Evaluation(cov, seen, r, type_a, parts)
 
 
-def criterion(ev: Evaluation, kind: str = "D") -> np.ndarray:
-    """Robust design criterion per layout (B,), smaller is better, the mean over the prior
-    draws of: 'D' the log-determinant of the covariance (D-optimal), 'A' the sum of the
-    relative variances (A-optimal)."""
+def criterion(ev: Evaluation, kind: str = "MV") -> np.ndarray:
+    """Robust design criterion per layout (B,), smaller is better, over the prior draws:
+    'MV' the largest (over the fitted constants) of the mean relative variances, plus
+    MV_TIE x the A criterion (minimax variance: every constant has the same relative
+    target); 'D' the mean log-determinant of the covariance (D-optimal); 'A' the mean sum
+    of the relative variances (A-optimal)."""
+    if kind == "MV":
+        var = np.diagonal(ev.cov, axis1=-2, axis2=-1).mean(axis=0)          # (B, Pf)
+        return var.max(axis=-1) + MV_TIE * var.sum(axis=-1)
     if kind == "D":
         sign, logdet = np.linalg.slogdet(ev.cov)
         return np.where(sign > 0, logdet, np.inf).mean(axis=0)

@@ -125,7 +125,7 @@ def _random(rng, allowed: np.ndarray, ns: int, dist: np.ndarray, min_gap: float)
     return Layout(tuple(chosen[:-1]), chosen[-1])
 
 
-def optimise(prob: DesignProblem, n_sensors: int, allowed, *, min_gap: float = 0.02, kind: str = "D",
+def optimise(prob: DesignProblem, n_sensors: int, allowed, *, min_gap: float = 0.02, kind: str = "MV",
              starts: Sequence[Layout] = (), n_random: int = 2, seed: int = 0,
              should_stop: Callable[[], bool] | None = None) -> tuple[Layout, list[Layout]]:
     """The best layout found and every start's end point (best first). ``allowed`` (C,) marks

@@ -39,8 +39,9 @@ def register(sub) -> None:
     p.add_argument("--margin", default="0.02", metavar="M", help="edge margin of the grid, m (default 0.02)")
     p.add_argument("--draws", type=int, default=6, metavar="N",
                    help="parameter sets over the prior the plan must hold for (default 6, 1..32)")
-    p.add_argument("--criterion", default="D", choices=("D", "A"),
-                   help="D-optimal (log-det) or A-optimal (sum of variances), mean over the draws")
+    p.add_argument("--criterion", default="MV", choices=("MV", "D", "A"),
+                   help="MV: the largest relative variance of the fitted constants (default: every "
+                        "wanted constant has the same target); D: log-det; A: sum of variances (over the draws)")
     p.add_argument("--sigma-f", default="0.1%", metavar="U",
                    help="relative std of a well excited peak's frequency (default 0.1%%)")
     p.add_argument("--mass-u", default="10%", metavar="U",

@@ -48,7 +48,7 @@ class PlanOptions:
     min_gap_m: float = 0.02
     sensors: int | None = None
     draws: int = 6
-    criterion: str = "D"
+    criterion: str = "MV"
     sigma_f: float = 1e-3
     mass_u: float = 0.1
     max_modes: int = 60
@@ -222,7 +222,7 @@ def _choice(v: str, choices: tuple[str, ...], option: str) -> str:
 
 def parse_options(material, *, want: str | None = None, target_u="2%", prior: str | None = None,
                   budget: str = "none", grid: int = 15, margin="0.02", sensors: int | None = None,
-                  draws: int = 6, criterion: str = "D", sigma_f="0.1%", mass_u="10%", max_modes: int = 60,
+                  draws: int = 6, criterion: str = "MV", sigma_f="0.1%", mass_u="10%", max_modes: int = 60,
                   waves: str = "auto", fit: str = "auto", seed: int = 0) -> PlanOptions:
     """:class:`PlanOptions` from the command's raw values (strings such as '2%' or numbers),
     each bounded where it enters (``LIMITS``; a UserError names the option)."""
@@ -239,7 +239,7 @@ def parse_options(material, *, want: str | None = None, target_u="2%", prior: st
         prior=parse_prior(prior, material), budget=budget, grid=_int(grid, "grid", "--grid"),
         margin_m=_bounded(m, "margin_m", "--margin", " m"),
         sensors=None if sensors is None else _int(sensors, "sensors", "--sensors"),
-        draws=_int(draws, "draws", "--draws"), criterion=_choice(criterion, ("D", "A"), "--criterion"),
+        draws=_int(draws, "draws", "--draws"), criterion=_choice(criterion, ("MV", "D", "A"), "--criterion"),
         sigma_f=parse_fraction(sigma_f, "--sigma-f", "sigma_f"), mass_u=parse_fraction(mass_u, "--mass-u", "mass_u"),
         max_modes=_int(max_modes, "max_modes", "--max-modes"), waves=_choice(waves, ("auto", "yes", "no"), "--waves"),
         fit=_choice(fit, ("auto", "wanted"), "--fit"),
