@@ -31,7 +31,7 @@ __all__ = ["DesignProblem", "Evaluation", "evaluate", "criterion", "CRITERIA", "
 RIDGE = 1e-10
 CRITERIA = ("MV", "D", "A")
 #: weight of the A term that breaks the ties of the MV criterion
-MV_TIE = 1e-2
+MV_TIE = 1e-3
 
 
 @dataclass(frozen=True)

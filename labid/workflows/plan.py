@@ -320,6 +320,7 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
     say("searching the layout")
     best, _ = optimise(prob, n_sensors, allowed, min_gap=options.min_gap_m, kind=options.criterion,
                        starts=starts, seed=options.seed, should_stop=should_stop)
+    best = _keep_user(prob, best, user, n_sensors, options.criterion, notes)
     check_stop()
     fit = ctx.fitted(best)
     prob = ctx.problem(fit)
@@ -351,6 +352,7 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
                 say("searching the layout with the waves' information")
                 best, _ = optimise(prob, n_sensors, allowed, min_gap=options.min_gap_m, kind=options.criterion,
                                    starts=[best], n_random=0, seed=options.seed, should_stop=should_stop)
+                best = _keep_user(prob, best, user, n_sensors, options.criterion, notes)
             else:
                 wave_doc["reason"] = ("the wave legs this plate allows neither bring " + ", ".join(need)
                                       + " to the target nor halve their std")
@@ -397,6 +399,18 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
         "notes": notes,
     }
     return PlanResult(out, model, mset.first_modes, tuple(key), waves.plan if waves else None, spec, template)
+
+
+def _keep_user(prob: DesignProblem, best: Layout, user, n_sensors: int, kind: str, notes: list) -> Layout:
+    """The user's own layout (exact positions, off the grid) when the search found nothing better."""
+    if len(user[2]) != n_sensors:
+        return best
+    value = float(criterion(evaluate(prob, [list(user[2])], [user[3]]), kind)[0])
+    if value <= best.value:
+        if not any(n.startswith("your layout") for n in notes):
+            notes.append("your layout is already the best the search found: keep it")
+        return Layout(tuple(user[2]), user[3], value)
+    return best
 
 
 def _waves_doc(w: _Waves, options: PlanOptions, recommended: bool) -> dict:
