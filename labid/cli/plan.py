@@ -25,7 +25,7 @@ def register(sub) -> None:
     p.add_argument("--want", metavar="E1,E2,G12", help="constants to identify (default: all of the material's)")
     p.add_argument("--target-u", default="2%", metavar="U",
                    help="target relative standard uncertainty of each wanted constant (default 2%%)")
-    p.add_argument("--prior", default=None, metavar="10%%|NAME=U,...",
+    p.add_argument("--prior", default=None, metavar="U|NAME=U,...",
                    help="relative std of the datasheet values (default 10%% each)")
     p.add_argument("--budget", default="none", metavar="none|specimen|FILE.toml",
                    help="add the type-B inputs of an [uncertainty] table (the specimen's, or a file's; "
