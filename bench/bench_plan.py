@@ -83,6 +83,24 @@ def plan_of(spec, layout: str) -> dict:
             "resolution_hz": d["measurement"]["resolution_hz"], "modes_seen": lay["modes_seen"]}
 
 
+def predict_layout(spec, plan: dict) -> dict:
+    """The current code's prediction for a stored plan's layout (the built-in rig with that
+    layout, evaluated as "your rig")."""
+    import tomlkit
+    from labid.inputs.rig import read_rig_text, rig_from_text
+    doc = tomlkit.parse(read_rig_text(None)[0])
+    doc["hammer"]["x"], doc["hammer"]["y"] = plan["tap"]
+    chans = doc["devices"]["vib"]["channels"]
+    accs = [c for c in chans if c["kind"] == "accelerometer"]
+    for c, (x, y) in zip(accs, plan["sensors"]):
+        c["x"], c["y"] = x, y
+    rig = rig_from_text(tomlkit.dumps(doc), "stored layout")
+    iso = spec.laminate.plies[0].material.isotropic
+    d = services.plan_test(spec, rig, want=None if iso else "E1,E2,G12", fit="wanted", waves="no",
+                           prior="10%").to_dict()
+    return {n: c["std_rel"] for n, c in d["rigs"][0]["constants"].items()}
+
+
 def draw_truth(mat, rng) -> dict:
     names = ("E", "G") if mat.isotropic else ("E1", "E2", "nu12", "G12", "G13", "G23")
     base = mat.params()
@@ -142,14 +160,18 @@ def case(spec, plan: dict, k: int, seed: int) -> dict:
             "cpu_truth": t1 - t0, "cpu_fit": t2 - t1}
 
 
-def summary(rows: list[dict], plan: dict) -> list[str]:
+def summary(rows: list[dict], plan: dict, current: dict | None = None) -> list[str]:
+    """Per constant: predicted (the stored plan's; ``current``: today's code on that layout)
+    against the spread (std, 1.4826 MAD) and the rms of the relative errors."""
     out = []
-    for nm, pred in plan["predicted"].items():
+    for nm, pred in (current or plan["predicted"]).items():
         e = np.array([r["err"][nm] for r in rows])
         sd = float(np.std(e, ddof=1))
         mad = float(1.4826 * np.median(np.abs(e - np.median(e))))
+        rms = float(np.sqrt(np.mean(e ** 2)))
         out.append(f"  {nm:5s} predicted {100 * pred:.3f} %  spread std {100 * sd:.3f} % (ratio {sd / pred:.2f})"
                    f"  MAD-std {100 * mad:.3f} % (ratio {mad / pred:.2f})  mean error {100 * e.mean():+.3f} %"
+                   f"  rms {100 * rms:.3f} % (ratio {rms / pred:.2f})"
                    f"  {'AGREES' if abs(sd / pred - 1) <= 0.25 else 'DISAGREES'} (25 %)")
     cons = sum(r["consistent"] for r in rows)
     out.append(f"  {len(rows)} cases, {cons} consistent; peaks per case {np.median([r['n_peaks'] for r in rows]):.0f} "
@@ -164,6 +186,8 @@ def main(argv=None) -> int:
     ap.add_argument("--layout", default="recommended", choices=("recommended", "rig"))
     ap.add_argument("--seed", type=int, default=25)
     ap.add_argument("--out", default="bench/plan_cases.jsonl")
+    ap.add_argument("--summary", action="store_true",
+                    help="no new cases: the stored ones against today's prediction for their layout")
     args = ap.parse_args(argv)
     print(machine(), flush=True)
     out = Path(args.out)
@@ -189,6 +213,12 @@ def main(argv=None) -> int:
         print(f"{spec.name} ({args.layout}): sensors {plan['sensors']} tap {plan['tap']} fitted {plan['fitted']} "
               f"predicted {json.dumps({k: round(100 * v, 4) for k, v in plan['predicted'].items()})} %", flush=True)
         rows = done.setdefault(key, {})
+        if args.summary:
+            cur = predict_layout(spec, plan)
+            print(f"  stored prediction {json.dumps({k: round(100 * v, 4) for k, v in plan['predicted'].items()})} %, "
+                  f"today's {json.dumps({k: round(100 * v, 4) for k, v in cur.items()})} %")
+            print("\n".join(summary([rows[k] for k in sorted(rows) if k < args.cases], plan, cur)), flush=True)
+            continue
         for k in range(args.cases):
             if k in rows:
                 continue

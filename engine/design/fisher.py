@@ -5,7 +5,10 @@ give the Fisher information of the fitted constants (log coordinates, so varianc
 relative)::
 
     F = sum_i w_i J_i J_i^T (+ the information of other data, e.g. guided waves),
-    w_i = seen_i / sigma_i^2,   sigma_i / f_i = sigma_rel sqrt(1 + (v_ref / v_i)^2)
+    w_i = seen_i / sigma_i^2,   (sigma_i / f_i)^2 = sigma_rel^2 (1 + (v_ref / v_i)^2) + e_i^2
+
+(e_i: the model error the fit adds to each peak's sigma, e.g. the plate mesh's discretisation
+error, so that the high modes count as little as they will in the fit).
 
 The inputs the fit holds fixed -- the constants not fitted (at nominal, uncertain by their
 prior), each accelerometer's mass (uncertain by ``mass_u_rel``), and with a budget the
@@ -43,7 +46,8 @@ class DesignProblem:
     modal data, name -> ((D, M) d ln f / d input, u); ``wave_jac`` (n, P) and
     ``wave_inputs`` (n, k) with ``wave_weight`` (n,) 1/sigma^2: other data (guided-wave
     velocities, relative), the same at every draw; ``wave_inputs`` columns follow the order
-    of ``fixed`` then ``inputs``.
+    of ``fixed`` then ``inputs``; ``model_error`` (M,): a relative error per mode the fit adds
+    in quadrature to each peak's sigma (the identification's discretisation error), or None.
     """
 
     mset: ModalSet
@@ -55,6 +59,7 @@ class DesignProblem:
     wave_jac: np.ndarray | None = None
     wave_inputs: np.ndarray | None = None
     wave_weight: np.ndarray | None = None
+    model_error: np.ndarray | None = None
     pairs: tuple = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -133,9 +138,10 @@ def evaluate(prob: DesignProblem, sensors, taps, masses=None) -> Evaluation:
     a_s = ms.amp[:, :, S]                                                  # (D, M, B, ns)
     r = e[..., None] * ms.amp[:, :, h] * np.sqrt((a_s ** 2).sum(-1))       # (D, M, B)
     seen = _seen(prob, r)
-    with np.errstate(divide="ignore"):
-        w = np.where(seen, 1.0 / (meas.sigma_rel ** 2 * (1.0 + (meas.v_ref / np.where(seen, r, 1.0)) ** 2)),
-                     0.0)
+    var = meas.sigma_rel ** 2 * (1.0 + (meas.v_ref / np.where(seen, r, 1.0)) ** 2)
+    if prob.model_error is not None:
+        var = var + (np.asarray(prob.model_error, float) ** 2)[None, :, None]
+    w = np.where(seen, 1.0 / var, 0.0)
     Jf = ms.jac[:, :, list(prob.fit)]                                      # (D, M, Pf)
     F = np.einsum("dmb,dmp,dmq->dbpq", w, Jf, Jf)
     Pf = len(prob.fit)

@@ -22,6 +22,7 @@ import numpy as np
 
 from engine.design import DesignProblem, Layout, candidate_grid, criterion, evaluate, modal_set, optimise, prior_draws, snap
 from engine.design import waves as dwaves
+from engine.identify.stages import discretisation
 from engine.plate import PlateModel, mode_families
 from engine.wavefeatures.band import default_wavelet
 
@@ -105,6 +106,7 @@ class _Context:
     mset: Any
     meas: Any
     masses: np.ndarray
+    model_error: np.ndarray | None = None
 
     def problem(self, fit: Sequence[int], waves: _Waves | None = None, inputs: dict | None = None,
                 sensor_u: float = 0.0) -> DesignProblem:
@@ -112,7 +114,7 @@ class _Context:
         fixed = tuple(i for i in range(len(self.names)) if i not in fit and self.prior[self.names[i]] > 0)
         fixed_u = tuple(self.prior[self.names[i]] for i in fixed)
         inputs = dict(inputs or {})
-        prob = DesignProblem(self.mset, self.meas, tuple(fit), fixed, fixed_u)
+        prob = DesignProblem(self.mset, self.meas, tuple(fit), fixed, fixed_u, model_error=self.model_error)
         if waves is not None:
             inputs, Xw = _wave_inputs(waves, fixed, inputs, self.spec, sensor_u)
             prob = replace(prob, wave_jac=waves.jac, wave_weight=waves.weight, wave_inputs=Xw)
@@ -305,7 +307,12 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
         meas = replace(meas, f_max_hz=f_last * (1.0 - 1e-3))
         notes.append(f"the band holds more than the {options.max_modes} modes modelled: fit the peaks below "
                      f"{meas.f_max_hz:.0f} Hz (labid analyze --modal-fmax, or more --max-modes)")
-    ctx = _Context(spec, options, names, want, prior, mset, meas, masses)
+    # the identification adds the plate mesh's remaining discretisation error to every peak's
+    # sigma (Richardson estimate from a 1.5x finer mesh, at the nominal): so does the plan
+    _, disc_err, _ = discretisation(spec.laminate, spec.length, spec.width, [], model, mat_name, options.max_modes)
+    model_error = np.zeros(options.max_modes)
+    model_error[:min(len(disc_err), options.max_modes)] = disc_err[:options.max_modes]
+    ctx = _Context(spec, options, names, want, prior, mset, meas, masses, model_error)
     check_stop()
     # -- the modal layout ------------------------------------------------------------------
     starts = []
