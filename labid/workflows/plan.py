@@ -44,6 +44,8 @@ IDENTIFIED_REL = 0.10
 #: a constant that is not wanted is held at nominal when the data alone leave it above this
 #: (``labid identify``'s default parameters rule)
 HOLD_REL = 0.30
+#: held constants whose priors add more than this to the fit's chi^2 per dof are flagged
+MISFIT_CHI2 = 1.0
 #: sample rate assumed for the wave device when the rig has none, Hz
 WAVE_RATE_HZ = 2.0e6
 #: the near wave sensor's distance from the source, m (as the built-in rig)
@@ -385,12 +387,19 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
     for rank, i in enumerate(sorted(range(1, len(rigs_doc)), key=lambda i: rigs_doc[i]["criterion"]), 1):
         rigs_doc[i]["rank"] = rank
     key = _key_modes(final, best, masses)
+    misfit = _held_misfit(final, best, masses)
+    if sum(misfit.values()) > MISFIT_CHI2:
+        worst = max(misfit, key=misfit.get)
+        notes.append(f"the held constants' priors add {sum(misfit.values()):.1f} to the fit's chi^2 per degree of "
+                     f"freedom ({worst} {misfit[worst]:.1f}): expect inconsistent fits and wrong pairings, where this "
+                     f"linear prediction does not hold; fit {worst} too (--want) or know it better (--prior)")
     out = {
         "specimen": spec.name,
         "plate": {"length_m": spec.length, "width_m": spec.width, "thickness_m": spec.laminate.thickness},
         "want": list(want), "target_u": options.target_u, "prior_rel": prior, "draws": len(draws),
         "criterion": options.criterion, "budget": options.budget,
         "fitted": [names[i] for i in fit], "held": {n: prior[n] for i, n in enumerate(names) if i not in fit},
+        "held_chi2_per_dof": misfit,
         "measurement": {"sigma_rel": meas.sigma_rel, "v_ref": meas.v_ref, "v_min": meas.v_min,
                         "damping": meas.damping, "band_hz": meas.band_hz(), "contact_s": meas.contact_s,
                         "acquisition_band_hz": meas.f_max_hz, "resolution_hz": meas.resolution_hz,
@@ -455,6 +464,29 @@ def _identifiability(ctx: _Context, best: Layout, waves: _Waves | None) -> dict:
                 d["identifiable"] = bool(rms[k] < IDENTIFIED_REL)
                 d["limited_by"] = ({"constant": ctx.names[j], "correlation": float(corr[k, j])}
                                    if len(ctx.names) > 1 else None)
+    return out
+
+
+def _held_misfit(prob: DesignProblem, best: Layout, masses) -> dict:
+    """Per held constant (nominal draw): the chi^2 per degree of freedom its prior std adds to
+    the fit, E ||P W^1/2 J_x u_x||^2 / (n - p), P the projection off the fitted constants'
+    columns (what they cannot absorb). Well above 1, the fit will be inconsistent."""
+    ev = evaluate(prob, [list(best.sensors)], [best.tap], masses)
+    seen = ev.seen[0, :, 0]
+    n, p = int(seen.sum()), len(prob.fit)
+    if n <= p:
+        return {}
+    r = np.maximum(ev.response[0, seen, 0], 1e-12)
+    var = prob.meas.sigma_rel ** 2 * (1.0 + (prob.meas.v_ref / r) ** 2)
+    if prob.model_error is not None:
+        var = var + prob.model_error[seen] ** 2
+    A = prob.mset.jac[0][seen][:, list(prob.fit)] / np.sqrt(var)[:, None]
+    Q, _ = np.linalg.qr(A)
+    out = {}
+    for i, u in zip(prob.fixed, prob.fixed_u):
+        x = prob.mset.jac[0][seen, i] * u / np.sqrt(var)
+        res = x - Q @ (Q.T @ x)
+        out[prob.mset.names[i]] = float(res @ res / (n - p))
     return out
 
 
