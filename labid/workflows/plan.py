@@ -304,9 +304,9 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
     if len(draws) < options.draws:
         notes.append(f"{options.draws - len(draws)} prior draw(s) gave inadmissible constants and were skipped")
     mset = modal_set(model, draws, names, points, options.max_modes, mat_name, progress=say)
-    f_last = float(mset.freqs[0, -1])
-    if f_last < meas.band_hz():   # the model holds fewer modes than the band: fit the peaks below its last
-        meas = replace(meas, f_max_hz=f_last * (1.0 - 1e-3))
+    f_cap = float(mset.freqs[0, -1]) * (1.0 - 1e-3)
+    if f_cap < meas.band_hz():   # the model holds fewer modes than the band: fit the peaks below its last
+        meas = replace(meas, f_max_hz=f_cap)
         notes.append(f"the band holds more than the {options.max_modes} modes modelled: fit the peaks below "
                      f"{meas.f_max_hz:.0f} Hz (labid analyze --modal-fmax, or more --max-modes)")
     # the identification adds the plate mesh's remaining discretisation error to every peak's
@@ -381,7 +381,8 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
     rec_modal = _layout_doc(ctx, modal_final, best.sensors, best.tap, masses, fams)
     rigs_doc = []
     for r, label, sens, tap, m_r in layouts:
-        d = _layout_doc(ctx, replace(final, meas=measurement_of(r, options)), sens, tap, m_r, fams)
+        m = measurement_of(r, options)
+        d = _layout_doc(ctx, replace(final, meas=replace(m, f_max_hz=min(m.f_max_hz, f_cap))), sens, tap, m_r, fams)
         d.update({"label": label, "source": r.source, "name": r.name})
         rigs_doc.append(d)
     for rank, i in enumerate(sorted(range(1, len(rigs_doc)), key=lambda i: rigs_doc[i]["criterion"]), 1):
