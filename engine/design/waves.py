@@ -29,7 +29,7 @@ import numpy as np
 
 from ..laminate import Laminate
 from ..safe import dispersion, group_velocity
-from ..wavefeatures.band import default_wavelet, source_band
+from ..wavefeatures.band import source_band
 from ..wavefeatures.predict import SourceModel
 from ..waves import ray_paths
 

@@ -20,7 +20,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from engine.design import DesignProblem, Layout, candidate_grid, criterion, evaluate, modal_set, optimise, prior_draws, snap
+from engine.design import (DesignProblem, Layout, candidate_grid, criterion, evaluate, modal_set, optimise,
+                           prior_draws, snap)
 from engine.design import waves as dwaves
 from engine.identify.stages import discretisation
 from engine.plate import PlateModel, mode_families
@@ -30,6 +31,7 @@ from ..base.errors import Cancelled, UserError
 from ..inputs.rig import Rig, load_rig
 from ..inputs.specimen import Specimen
 from .budget import uncertainty_table
+from .plan_docs import held_misfit, key_modes, layout_doc, std_table, waves_doc
 from .plan_figure import plan_png, save_plan_figure
 from .plan_inputs import (PlanOptions, budget_columns, constant_names, material_of, measurement_of, parse_options,
                           rig_layout)
@@ -139,58 +141,6 @@ class _Context:
             if not cand or max(cand)[0] <= HOLD_REL:
                 return tuple(fit)
             fit.remove(max(cand)[1])
-
-
-def _std_table(prob: DesignProblem, ev, target: float, want: Sequence[str]) -> dict:
-    """Per fitted constant: rms (over draws) and worst std, type-A std, meets the target, and
-    what limits it: the largest share of its variance (the data, type A, with the fitted
-    constant it correlates with most; or one held input), with every share."""
-    std = ev.std[:, 0, :]
-    names = prob.names
-    cov0 = ev.cov[0, 0]
-    sd0 = np.sqrt(np.diag(cov0))
-    corr = cov0 / np.outer(sd0, sd0)
-    out = {}
-    for k, n in enumerate(names):
-        rms = float(np.sqrt(np.mean(std[:, k] ** 2)))
-        var = {"data (type A)": float(np.mean(ev.type_a[:, 0, k] ** 2))}
-        var.update({p: float(np.mean(v[:, 0, k])) for p, v in ev.parts.items()})
-        total = sum(var.values()) or 1.0
-        share = {p: v / total for p, v in sorted(var.items(), key=lambda t: -t[1]) if v / total >= 0.005}
-        top = next(iter(share)) if share else "data (type A)"
-        lim = {"source": top, "share": share.get(top, 1.0)}
-        if top == "data (type A)" and len(names) > 1:
-            c = np.abs(corr[k]).copy()
-            c[k] = -1.0
-            j = int(np.argmax(c))
-            lim["correlated_with"] = {"constant": names[j], "correlation": float(corr[k, j])}
-        out[n] = {"std_rel": rms, "std_rel_worst": float(std[:, k].max()),
-                  "type_a_rel": float(np.sqrt(var["data (type A)"])),
-                  "wanted": n in want, "meets_target": bool(rms <= target), "limited_by": lim, "shares": share}
-    return out
-
-
-def _layout_doc(ctx: _Context, prob: DesignProblem, sensors, tap, masses, families: list[str]) -> dict:
-    ev = evaluate(prob, [list(sensors)], [tap], masses)
-    consts = _std_table(prob, ev, ctx.options.target_u, ctx.want)
-    seen = ev.seen[:, :, 0]
-    f0 = prob.mset.freqs[0]
-    in_band = np.isfinite(f0) & (prob.meas.excitation(np.nan_to_num(f0)) > 0)
-    pts = prob.mset.points
-    return {
-        "accelerometers": [{"x": float(pts[s, 0]), "y": float(pts[s, 1]), "mass_kg": float(m)}
-                           for s, m in zip(sensors, masses)],
-        "hammer": {"x": float(pts[tap, 0]), "y": float(pts[tap, 1])},
-        "criterion": float(criterion(ev, ctx.options.criterion)[0]),
-        "worst_std_rel": max(c["std_rel"] for n, c in consts.items() if n in ctx.want),
-        "constants": consts,
-        "modes_in_band": int(in_band.sum()),
-        "modes_seen": {"nominal": int(seen[0].sum()), "min": int(seen.sum(axis=1).min()),
-                       "max": int(seen.sum(axis=1).max())},
-        "unseen_at_nominal": [{"mode": int(i), "frequency_hz": float(f0[i]), "family": families[i],
-                               "response": float(ev.response[0, i, 0])}
-                              for i in np.flatnonzero(in_band & ~seen[0])],
-    }
 
 
 def _wave_inputs(w: _Waves, fixed: Sequence[int], inputs: dict, spec: Specimen, sensor_u: float
@@ -333,7 +283,7 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
     check_stop()
     fit = ctx.fitted(best)
     prob = ctx.problem(fit)
-    modal_std = _std_table(prob, evaluate(prob, [list(best.sensors)], [best.tap], masses), options.target_u, want)
+    modal_std = std_table(prob, evaluate(prob, [list(best.sensors)], [best.tap], masses), options.target_u, want)
     # -- guided waves: whether they pay --------------------------------------------------------
     need = [n for n in want if not modal_std[n]["meets_target"]]
     waves: _Waves | None = None
@@ -346,12 +296,12 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
         else:
             fit_w = ctx.fitted(best, got)
             prob_w = ctx.problem(fit_w, got)
-            wstd = _std_table(prob_w, evaluate(prob_w, [list(best.sensors)], [best.tap], masses),
+            wstd = std_table(prob_w, evaluate(prob_w, [list(best.sensors)], [best.tap], masses),
                               options.target_u, want)
             say("with waves: " + ", ".join(f"{k} {100 * v['std_rel']:.2f}% (A {100 * v['type_a_rel']:.2f}%)" for k, v in wstd.items()) + f" fitted {fit_w}")
             pays = options.waves == "yes" or any(
                 wstd[n]["meets_target"] or wstd[n]["std_rel"] <= 0.5 * modal_std[n]["std_rel"] for n in need)
-            wave_doc.update(_waves_doc(got, options, pays))
+            wave_doc.update(waves_doc(got, options.wave_timing_s, options.wave_floor, pays))
             if "nu12" in need and not wstd.get("nu12", {}).get("meets_target", True):
                 notes.append("nu12: the A0 velocities planned here hardly inform it; S0 velocities do "
                              "(a symmetric source, e.g. a PZT pair driven 'symmetric', and labid analyze "
@@ -377,18 +327,19 @@ def plan_test(spec: Specimen, rig: Rig | None = None, options: PlanOptions = Pla
     else:
         final, modal_final = ctx.problem(fit, waves), ctx.problem(fit_modal)
     fams = mode_families(model, mset.first_modes, spec.length, spec.width)
-    rec = _layout_doc(ctx, final, best.sensors, best.tap, masses, fams)
-    rec_modal = _layout_doc(ctx, modal_final, best.sensors, best.tap, masses, fams)
+    args = (options.target_u, want, options.criterion)
+    rec = layout_doc(final, best.sensors, best.tap, masses, fams, *args)
+    rec_modal = layout_doc(modal_final, best.sensors, best.tap, masses, fams, *args)
     rigs_doc = []
     for r, label, sens, tap, m_r in layouts:
         m = measurement_of(r, options)
-        d = _layout_doc(ctx, replace(final, meas=replace(m, f_max_hz=min(m.f_max_hz, f_cap))), sens, tap, m_r, fams)
+        d = layout_doc(replace(final, meas=replace(m, f_max_hz=min(m.f_max_hz, f_cap))), sens, tap, m_r, fams, *args)
         d.update({"label": label, "source": r.source, "name": r.name})
         rigs_doc.append(d)
     for rank, i in enumerate(sorted(range(1, len(rigs_doc)), key=lambda i: rigs_doc[i]["criterion"]), 1):
         rigs_doc[i]["rank"] = rank
-    key = _key_modes(final, best, masses)
-    misfit = _held_misfit(final, best, masses)
+    key = key_modes(final, best, masses)
+    misfit = held_misfit(final, best, masses)
     if sum(misfit.values()) > MISFIT_CHI2:
         worst = max(misfit, key=misfit.get)
         notes.append(f"the held constants' priors add {sum(misfit.values()):.1f} to the fit's chi^2 per degree of "
@@ -430,19 +381,6 @@ def _keep_user(prob: DesignProblem, best: Layout, user, n_sensors: int, kind: st
     return best
 
 
-def _waves_doc(w: _Waves, options: PlanOptions, recommended: bool) -> dict:
-    legs = []
-    for leg in w.plan.legs:
-        (xn, yn), (xf, yf) = leg.positions(w.plan.source)
-        sig = 1.0 / np.sqrt(dwaves.leg_weights(leg, options.wave_timing_s, options.wave_floor)) if leg.freqs else []
-        legs.append({"direction_deg": leg.direction_deg, "near_m": leg.near_m, "far_m": leg.far_m,
-                     "near_xy": [xn, yn], "far_xy": [xf, yf], "points_hz": list(leg.freqs),
-                     "cg_m_s": list(leg.cg), "sigma_rel": [float(v) for v in sig]})
-    return {"recommended": bool(recommended), "mode": "A0",
-            "source": {"kind": "pencil", "x": w.plan.source[0], "y": w.plan.source[1]},
-            "rate_hz": w.rate_hz, "band_hz": list(w.plan.band_hz), "legs": legs, "n_points": w.plan.n_points}
-
-
 def _identifiability(ctx: _Context, best: Layout, waves: _Waves | None) -> dict:
     """Per constant, every constant fitted from the data alone: rms std with the plan's data
     and with modal data alone, identifiable (< IDENTIFIED_REL), the constant it correlates with
@@ -466,36 +404,3 @@ def _identifiability(ctx: _Context, best: Layout, waves: _Waves | None) -> dict:
                 d["limited_by"] = ({"constant": ctx.names[j], "correlation": float(corr[k, j])}
                                    if len(ctx.names) > 1 else None)
     return out
-
-
-def _held_misfit(prob: DesignProblem, best: Layout, masses) -> dict:
-    """Per held constant (nominal draw): the chi^2 per degree of freedom its prior std adds to
-    the fit, E ||P W^1/2 J_x u_x||^2 / (n - p), P the projection off the fitted constants'
-    columns (what they cannot absorb). Well above 1, the fit will be inconsistent."""
-    ev = evaluate(prob, [list(best.sensors)], [best.tap], masses)
-    seen = ev.seen[0, :, 0]
-    n, p = int(seen.sum()), len(prob.fit)
-    if n <= p:
-        return {}
-    r = np.maximum(ev.response[0, seen, 0], 1e-12)
-    var = prob.meas.sigma_rel ** 2 * (1.0 + (prob.meas.v_ref / r) ** 2)
-    if prob.model_error is not None:
-        var = var + prob.model_error[seen] ** 2
-    A = prob.mset.jac[0][seen][:, list(prob.fit)] / np.sqrt(var)[:, None]
-    Q, _ = np.linalg.qr(A)
-    out = {}
-    for i, u in zip(prob.fixed, prob.fixed_u):
-        x = prob.mset.jac[0][seen, i] * u / np.sqrt(var)
-        res = x - Q @ (Q.T @ x)
-        out[prob.mset.names[i]] = float(res @ res / (n - p))
-    return out
-
-
-def _key_modes(prob: DesignProblem, best: Layout, masses, n: int = 3) -> list[int]:
-    """The seen modes (nominal draw) of largest leverage w_i J_i^T C J_i on the fitted constants."""
-    ev = evaluate(prob, [list(best.sensors)], [best.tap], masses)
-    r = np.maximum(ev.response[0, :, 0], 1e-12)
-    w = ev.seen[0, :, 0] / (prob.meas.sigma_rel ** 2 * (1.0 + (prob.meas.v_ref / r) ** 2))
-    J = prob.mset.jac[0][:, list(prob.fit)]
-    lev = w * np.einsum("mp,pq,mq->m", J, ev.cov[0, 0], J)
-    return [int(i) for i in np.argsort(lev)[::-1][:n] if lev[i] > 0]
