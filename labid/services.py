@@ -59,11 +59,12 @@ from .display import (HammerChecks, Scalogram, average_spectrum, hammer_checks, 
                       model_group_velocity, parameters_of, scalogram)
 from .base.errors import UserError
 from .workflows.damping import damping_summary, family_of
+from .workflows import plan as planning
 from .inputs.features import features_text, specimen_of
 from .inputs import calibration as calib
 from .io import exporters, importers
 from .inputs.rig import Rig, load_rig
-from .inputs.specimen import Specimen
+from .inputs.specimen import Specimen, load_specimen
 from .store import KINDS, RunStore, WriterLock, decode_result
 
 __all__ = [
@@ -79,7 +80,7 @@ __all__ = [
     # identification and diagnosis (labid.inference)
     "Identification", "identification_of", "METHODS", "minima_summary", "default_params_for", "select_data", "load_features_file",
     "specimen_for_features", "parse_start", "parse_names", "check_prior", "connect_scheduler", "family_of",
-    "run_identification", "run_diagnosis", "run_of_features", "store_for_features",
+    "run_identification", "run_diagnosis", "run_of_features", "store_for_features", "plan_test",
     # import, export, calibration (labid.io)
     "import_records", "export_run", "write_result_tables", "calibration_status", "run_calibration",
     "warn_calibration",
@@ -404,6 +405,26 @@ def toggle_peak(peaks: Sequence[modal.Peak], spec: modal.Spectra, f_hz: float,
 
 # ============================================================== identification and diagnosis
 # (labid.inference: run_identification, run_diagnosis and their option parsers, re-exported)
+
+
+def plan_test(spec: Specimen | str, rig: Rig | str | None = None, compare: Sequence[Rig | str] = (), *,
+              progress: Callable[[str], None] | None = None, should_stop: ShouldStop | None = None,
+              **options) -> "planning.PlanResult":
+    """``labid plan`` and the setup view's Plan box (issue 25, ``labid.workflows.plan``): the
+    recommended test of ``spec`` (object, path or built-in name) on ``rig`` (None: the built-in
+    rig) and ``compare`` rigs; ``options``: the command's raw option values
+    (``labid.workflows.plan_inputs.parse_options``). The result has ``to_dict()`` (the
+    ``--json`` document), ``text()``, ``write_rig(path)`` and ``save_figure(path)``."""
+    spec = spec if isinstance(spec, Specimen) else load_specimen(spec)
+    rigs = [r if isinstance(r, Rig) else load_rig(r) for r in ([rig] if rig is not None else []) + list(compare)]
+    for r in rigs:
+        r.check_specimen(spec.length, spec.width)
+    opts = planning.parse_options(planning.material_of(spec)[1], **options)
+    return planning.plan_test(spec, rigs[0] if rig is not None else None, opts,
+                              compare=rigs[1:] if rig is not None else rigs, progress=progress,
+                              should_stop=should_stop)
+
+
 # ============================================================== import, export, calibration (issue 16)
 def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specimen | str, out: str | Path,
                    map_text: str | None = None, **options) -> dict:

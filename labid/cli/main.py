@@ -38,6 +38,7 @@ from ..base.errors import UserError
 COMMANDS: dict[str, str] = {
     "dispersion": "guided-wave dispersion curves (SAFE)",
     "modes": "free-free natural frequencies of the plate",
+    "plan": "design the test: sensor and tap layout, waves, predicted stds",
     "acquire": "headless acquisition session (appends to RUN.h5)",
     "import": "recordings of other systems (TDMS, UFF58, WAV, MAT, CSV) into a run file",
     "analyze": "resonance peaks and CWT group velocities of a run -> features",

@@ -15,6 +15,7 @@ from .. import services
 from ..base.errors import UserError
 from ..inputs.rig import Rig, rig_from_text
 from ..inputs.specimen import BUILTIN as SPECIMENS, Specimen, specimen_from_dict
+from .plan_box import PlanBox
 from .tomledit import TomlEditor
 
 OK_STYLE = "color: #006000;"
@@ -255,9 +256,11 @@ class SetupView(QWidget):
         self.connect_btn.clicked.connect(self.refresh_instruments)
         self._polling = False
 
+        self.plan_box = PlanBox(self)   # issue 25: labid plan on the editors' files
         right = QVBoxLayout()
         right.addWidget(bk)
         right.addWidget(sr)
+        right.addWidget(self.plan_box)
         right.addStretch(1)
         lay = QHBoxLayout(self)
         lay.addWidget(self.specimen_box, 5)
