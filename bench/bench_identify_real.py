@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import json
 import statistics
 import sys
 import time
@@ -123,7 +124,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=200)
     ap.add_argument("--seed", type=int, default=12)
+    ap.add_argument("--out", default=None, help="also write one JSON line per case (constants, stds, verdict)")
     args = ap.parse_args(argv)
+    fh = open(args.out, "w") if args.out else None
     print(machine())
     plates = _plates()
     rng = np.random.default_rng(args.seed)
@@ -145,6 +148,11 @@ def main(argv=None) -> int:
                      "identified": bool(est.fit["identified"]), "cpu_fit": t2 - t1, "cpu_setup": t1 - t0,
                      "max_err": max(abs(v) for v in err.values()), "chi2nu": est.fit["chi2_per_dof"]})
         r = rows[-1]
+        if fh:
+            fh.write(json.dumps({"case": k, **{kk: v for kk, v in r.items() if kk not in ("cpu_fit", "cpu_setup")},
+                                 "params": est.params, "std": dict(zip(est.names, map(float, est.std))),
+                                 "chi2": est.fit["chi2"], "cpu_fit": r["cpu_fit"]}) + "\n")
+            fh.flush()
         print(f"{k:3d} {spec.name:<24} N={info['N']:2d} drop={info['dropped']:2d} spur={info['spurious']} "
               f"max|err| {100 * r['max_err']:6.2f} %  max|z| {max(abs(v) for v in z.values()):5.2f}  "
               f"chi2/nu {r['chi2nu']:8.3g} {'consistent' if cons else 'INCONSISTENT'}"
