@@ -30,6 +30,7 @@ import numpy as np
 from ..features import Features
 from ..fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
                    laplace, nelder_mead_fit, whitened_jacobian)
+from ..fit.lm import STALLED
 from ..laminate import PhysicsError
 from ..plate import PlateModel, mode_families
 from ..plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
@@ -73,10 +74,10 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     fixed = {h: v for h, (v, _) in held.items()}
     blocks = boxed(ctx, blocks)
 
-    def fit(start_: Mapping[str, float]) -> Estimate:
+    def fit(start_: Mapping[str, float], give_up: float | None = None) -> Estimate:
         try:
             if method == "lm":
-                return estimate(blocks, names, start_, prior=prior, max_iter=max_iter)
+                return estimate(blocks, names, start_, prior=prior, max_iter=max_iter, give_up=give_up)
             if method == "bayes":
                 return bayesian_update(blocks, names, start_,
                                        prior_rel_std=0.5 if prior is None else prior, max_iter=max_iter)
@@ -91,18 +92,28 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     if like and global_stage:          # every method: the Lai-Ip update needs a good start as much
         starts, note, ranked = global_starts(ctx, names, st, fixed)
         pair_notes.append(note)
-    def fit_paired(start_: Mapping[str, float]) -> Estimate:
-        """A fit from ``start_``, with its own likelihood pairing (re-paired until it stands)."""
+    def fit_paired(start_: Mapping[str, float], give_up: float | None = None, assignment=None) -> Estimate:
+        """A fit from ``start_``, with its own likelihood pairing (re-paired until it stands);
+        ``assignment``: the pairing to start from (default: paired afresh at ``start_``)."""
         if not like:
-            return fit(start_)
-        fwd.reset_pairing()
-        e_, notes_ = _repair_loop(ctx, fit(start_), fit, st)
+            return fit(start_, give_up)
+        if assignment is None:
+            fwd.reset_pairing()
+        else:
+            fwd.repair_fixed_assignment(assignment)
+        fit_ = (lambda s_: fit(s_, give_up)) if give_up is not None else fit
+        e_, notes_ = _repair_loop(ctx, fit_(start_), fit_, st)
         return replace(e_, fit={"assignment": fwd.assignment, "notes": notes_})
 
+    # several candidate starts: a descent that stalls far above an acceptable chi^2 is ended
+    # early (engine.fit.lm.STALLED) and the next candidate tried; it is resumed only when it
+    # is kept (no candidate fits)
+    n_pts = sum(b.observed.size for b in blocks)
+    give_up = GIVE_UP * (n_pts + 3.0 * math.sqrt(2.0 * n_pts)) if method == "lm" and len(starts) > 1 else None
     tried: list[Estimate] = []
     for k, s0 in enumerate(starts):
         try:
-            e = fit_paired(s0)
+            e = fit_paired(s0, give_up)
         except ValueError:   # a candidate start outside the admissible region: the next one
             if k < len(starts) - 1 or tried:
                 continue
@@ -122,6 +133,11 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
         except ValueError:
             pass
     est = min(tried, key=_penalised)
+    if est.message == STALLED:        # kept although stalled: fitted to the end from where it stopped
+        i = tried.index(est)
+        e = fit_paired(est.params, assignment=est.fit["assignment"] if like else None)
+        tried[i] = est = replace(e, iterations=est.iterations + e.iterations, history=est.history + e.history,
+                                 seconds=est.seconds + e.seconds)
     ambiguous = _ambiguity(est, tried)
     if like:
         fwd.repair_fixed_assignment(est.fit["assignment"])
@@ -196,6 +212,9 @@ def identifiable(blocks: Sequence[DataBlock], names: Sequence[str], start: Mappi
 
 #: candidate starts of the global stage fitted at most (the next only when the last was inconsistent)
 N_GLOBAL_FITS = 3
+#: with several candidate starts, a descent stalled above GIVE_UP x the acceptable chi^2 (see
+#: _fits) is ended early (engine.fit.estimate's give_up) and the next candidate tried
+GIVE_UP = 10.0
 #: a global-stage candidate this far (log) in some constant the modes constrain best from an
 #: accepted minimum lies in another basin (a rival start)
 RIVAL_LOG = math.log(1.25)
