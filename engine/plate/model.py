@@ -22,6 +22,7 @@ from ..laminate import Laminate, Material
 from .element import NODE_DOF, FEError, reference_matrices, shape_2d
 from .field import COEF_POWER, field_scatter, thickness_weights
 from .mesh import Mesh
+from .sensitivity import coefficient_energies
 from .sparse import Block, Pattern, point_matrix
 from .stiffness import material_maps, q_derivatives, q_vector
 
@@ -447,34 +448,7 @@ class PlateModel:
         L, R = self._maps[name]
         dc = L @ dq[:6]                                 # (21, P)
         dI = np.outer(R, dq[6])                         # (3, P)
-        pat = self._pat
-        phi = modes.shapes[self.mesh.element_dofs].transpose(2, 0, 1)   # (m, ne, 80)
-        m = phi.shape[0]
-        nt = pat.type_scales.shape[0]
-        if "Ke_rows" not in self._cache:   # (6, 6400, 21) reference K per combo, 21 columns
-            self._cache["Ke_rows"] = np.ascontiguousarray(self._Ke.reshape(6, 21, 6400).transpose(0, 2, 1))
-        Kr = self._cache["Ke_rows"]
-        Me = self._Me.reshape(3, 6400).T                                # (6400, 3)
-
-        def energies(w):
-            # S[t, mode] = sum over elements of type t of w_e phi_e phi_e' (80 x 80), by matmul
-            S = np.empty((nt, m, 80, 80))
-            pw = phi if w is None else phi * w[None, :, None]
-            for t in range(nt):
-                sel = pat.elem_type == t
-                ph, phw = (phi[:, sel], pw[:, sel]) if nt > 1 else (phi, pw)
-                np.matmul(phw.transpose(0, 2, 1), ph, out=S[t])
-            Sc = (pat.type_scales.T @ S.reshape(nt, -1)).reshape(6, m, 6400)  # per scale combo
-            return sum(Sc[p] @ Kr[p] for p in range(6)), Sc[0] @ Me          # (m, 21), (m, 3)
-
-        if self._tw is None:
-            eK, eM = energies(None)
-        else:   # thickness field: coefficient k and inertia j go with s^power
-            eK, eM = np.zeros((m, 21)), np.zeros((m, 3))
-            for p in (1, 2, 3):
-                k, mm = energies(self._tw[p - 1])
-                eK[:, COEF_POWER == p] = k[:, COEF_POWER == p]
-                eM[:, p - 1] = mm[:, p - 1]
+        eK, eM = coefficient_energies(self, modes)
         return eK @ dc - modes.omega2[:, None] * (eM @ dI)
 
 
