@@ -25,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .element import NODE_DOF, shape_2d
+from .element import NODE_DOF, reference_by_combo, shape_2d
 from .field import COEF_POWER
 
 __all__ = ["coefficient_energies", "geometry_sensitivities", "X_POWER", "Y_POWER"]
@@ -44,10 +44,7 @@ def coefficient_energies(model, modes, per_combo: bool = False) -> tuple[np.ndar
     phi = modes.shapes[model.mesh.element_dofs].transpose(2, 0, 1)   # (m, ne, 80)
     m = phi.shape[0]
     nt = pat.type_scales.shape[0]
-    cache = model._cache
-    if "Ke_rows" not in cache:   # (6, 6400, 21) reference K per combo, 21 columns
-        cache["Ke_rows"] = np.ascontiguousarray(model._Ke.reshape(6, 21, 6400).transpose(0, 2, 1))
-    Kr = cache["Ke_rows"]
+    Kr = reference_by_combo()                                        # (6, 6400, 21)
     Me = model._Me.reshape(3, 6400).T                                # (6400, 3)
 
     def energies(w):
