@@ -24,7 +24,6 @@ import argparse
 import copy
 import json
 import os
-import resource
 import statistics
 import subprocess
 import sys
@@ -36,17 +35,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def child(args: list[str], root: Path, cwd: Path) -> dict:
-    """One ``labid`` command in a child process: CPU (s), wall (s), peak RSS (MiB)."""
+    """One ``labid`` command in a child process under ``/usr/bin/time``: CPU (user + sys of it
+    and the processes it waited for, s), wall (s), peak RSS of the largest (MiB)."""
     env = {**os.environ, "PYTHONPATH": str(root), "LABID_THREADS": os.environ.get("LABID_THREADS", "1"),
            "QT_QPA_PLATFORM": "offscreen", "MPLBACKEND": "Agg"}
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "labid.cli.main", *args, "--quiet"], env=env, cwd=cwd, check=True,
-                   stdout=subprocess.DEVNULL)
-    wall = time.perf_counter() - t0
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return {"cpu": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), "wall": wall,
-            "rss": after.ru_maxrss / 1024.0}
+    p = subprocess.run(["/usr/bin/time", "-f", "TIME %e %U %S %M", sys.executable, "-m", "labid.cli.main", *args,
+                        "--quiet"], env=env, cwd=cwd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                       text=True)
+    wall, user, sys_, rss = next(ln for ln in p.stderr.splitlines() if ln.startswith("TIME ")).split()[1:]
+    return {"cpu": float(user) + float(sys_), "wall": float(wall), "rss": float(rss) / 1024.0}
 
 
 def main() -> int:
