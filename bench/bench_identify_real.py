@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import json
 import statistics
 import sys
 import time
@@ -31,6 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
+from bench._count import Counts  # noqa: E402
 from bench._machine import machine  # noqa: E402
 from engine.plate import PlateModel  # noqa: E402
 from engine.plate.convergence import reference_mesh  # noqa: E402
@@ -123,19 +125,24 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=200)
     ap.add_argument("--seed", type=int, default=12)
+    ap.add_argument("--out", default=None, help="also write one JSON line per case (constants, stds, verdict)")
     args = ap.parse_args(argv)
+    fh = open(args.out, "w") if args.out else None
     print(machine())
     plates = _plates()
     rng = np.random.default_rng(args.seed)
     rows = []
     t_all = time.perf_counter()
+    counts = Counts().__enter__()         # plate solves per fit (bench only)
     for k in range(args.cases):
         spec, doc, names, truth, start, info = draw_case(k, rng, plates)
         t0 = time.process_time()
         prob = problem_from_features(doc, specimen=spec)
         t1 = time.process_time()
+        n0 = sum(n for lab, (n, _) in counts.snapshot().items() if lab.startswith("plate solve"))
         est = run(prob, names, start)
         t2 = time.process_time()
+        solves = sum(n for lab, (n, _) in counts.snapshot().items() if lab.startswith("plate solve")) - n0
         z = {n: (est.params[n] - truth[n]) / est.std[i] for i, n in enumerate(est.names)}
         err = {n: est.params[n] / truth[n] - 1 for n in est.names}
         within2 = all(abs(v) <= 2 for v in z.values())
@@ -143,18 +150,26 @@ def main(argv=None) -> int:
         wrong = cons and any(abs(v) > 3 for v in z.values())
         rows.append({"plate": spec.name, **info, "within2": within2, "consistent": cons, "wrong": wrong,
                      "identified": bool(est.fit["identified"]), "cpu_fit": t2 - t1, "cpu_setup": t1 - t0,
-                     "max_err": max(abs(v) for v in err.values()), "chi2nu": est.fit["chi2_per_dof"]})
+                     "max_err": max(abs(v) for v in err.values()), "chi2nu": est.fit["chi2_per_dof"],
+                     "solves": solves})
         r = rows[-1]
+        if fh:
+            fh.write(json.dumps({"case": k, **{kk: v for kk, v in r.items() if kk not in ("cpu_fit", "cpu_setup")},
+                                 "params": est.params, "std": dict(zip(est.names, map(float, est.std))),
+                                 "chi2": est.fit["chi2"], "cpu_fit": r["cpu_fit"]}) + "\n")
+            fh.flush()
         print(f"{k:3d} {spec.name:<24} N={info['N']:2d} drop={info['dropped']:2d} spur={info['spurious']} "
               f"max|err| {100 * r['max_err']:6.2f} %  max|z| {max(abs(v) for v in z.values()):5.2f}  "
               f"chi2/nu {r['chi2nu']:8.3g} {'consistent' if cons else 'INCONSISTENT'}"
-              f"{'  CONFIDENTLY WRONG' if wrong else ''}  fit {r['cpu_fit']:5.1f} s CPU", flush=True)
+              f"{'  CONFIDENTLY WRONG' if wrong else ''}  fit {r['cpu_fit']:5.1f} s CPU, {solves} solves", flush=True)
     n = len(rows)
     print(f"\n{n} cases, wall {time.perf_counter() - t_all:.0f} s")
     print(f"truth within 2 std: {100 * sum(r['within2'] for r in rows) / n:.1f} %")
     print(f"confidently wrong (|err| > 3 std, consistent): {100 * sum(r['wrong'] for r in rows) / n:.1f} %")
     print(f"consistent: {100 * sum(r['consistent'] for r in rows) / n:.1f} %; identified: "
           f"{100 * sum(r['identified'] for r in rows) / n:.1f} %")
+    print(f"plate solves per fit: median {statistics.median(r['solves'] for r in rows)}, "
+          f"max {max(r['solves'] for r in rows)}")
     print(f"median CPU per fit {statistics.median(r['cpu_fit'] for r in rows):.2f} s "
           f"(+ setup {statistics.median(r['cpu_setup'] for r in rows):.2f} s); max {max(r['cpu_fit'] for r in rows):.1f} s")
     for fam in ("cfrp", "wood", "aluminium"):

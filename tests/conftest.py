@@ -32,3 +32,28 @@ def main_window(qtbot):
     QApplication.sendPostedEvents(None, QEvent.DeferredDelete)
     QApplication.processEvents()
     gc.collect()
+
+
+@pytest.fixture(scope="session")
+def demo_output(tmp_path_factory):
+    """``labid demo --json`` run once per test session, shared (issue 29: it ran twice, 112 s
+    of the suite's CPU): (output folder, its JSON result). Under pytest-xdist the workers share
+    one run through a lock in the session's base folder; the first to come runs it. Tests that
+    write into its files copy them first."""
+    import fcntl
+    import json
+
+    from labid.cli.main import main
+
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    root = tmp_path_factory.getbasetemp()
+    if worker:                         # the session folder all workers share
+        root = root.parent
+    out, res = root / "shared_demo", root / "shared_demo.json"
+    with open(root / "shared_demo.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)          # the others wait here for the first run
+        if not res.exists():
+            code = main(["demo", "--quiet", "--out", str(out), "--json", str(res) + ".part"])
+            assert code == 0, f"labid demo exited with {code}"
+            os.replace(str(res) + ".part", res)
+    return out, json.loads(res.read_text())

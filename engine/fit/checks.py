@@ -3,9 +3,9 @@
 * :func:`birge_refit` -- a data set whose chi^2 per point is significantly
   above 1 (by more than 3 sqrt(2/n)) but below 10 has its sigmas multiplied by
   sqrt(chi^2/n) (the Birge ratio) and the fit is repeated from the estimate.
-* :func:`consistency` -- each data set fitted alone (from the combined
-  estimate); a combined chi^2 above the sum of the separate minima by more
-  than chance allows means the data sets disagree beyond their sigmas.
+* :func:`consistency` -- each data set's own minimum (Gauss-Newton model at the
+  combined estimate); a combined chi^2 above the sum of the separate minima by
+  more than chance allows means the data sets disagree beyond their sigmas.
 """
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .estimators import estimate
-from .problem import DataBlock, IdentificationError, Prior
-from .uncertainty import Estimate
+from .problem import Coords, DataBlock, IdentificationError, Prior, Problem, check_start, prior_arrays
+from .uncertainty import Estimate, laplace
 
 __all__ = ["birge_refit", "consistency", "goodness", "scale_uncertainty", "P_CONSISTENT"]
 
@@ -85,26 +85,41 @@ def birge_refit(blocks: Sequence[DataBlock], est: Estimate, names: Sequence[str]
 
 
 def consistency(blocks: Sequence[DataBlock], est: Estimate, names: Sequence[str],
-                prior: float | Prior | None, max_iter: int) -> list[str]:
+                prior: float | Prior | None, max_iter: int = 0) -> list[str]:
     """Warnings (empty or one) when the data sets disagree beyond their sigmas.
 
     Chi^2 test with k degrees of freedom (k = combinations every data set
     constrains), p < 0.05; the warning names the parameters the data sets pull
     apart most: the combined std is then optimistic.
+
+    Each data set's own minimum is that of the Gauss-Newton model of its whitened
+    residual at the combined estimate (with the same prior): no new nonlinear fit.
+    Measured on the demo's combined identification: the two nonlinear fits it replaced
+    cost 22 plate solves and 36 SAFE predictions (3.6 s CPU, 13 % of the identification);
+    on data linear in log p the two are the same (tests/integration/test_identify_cli.py).
+    ``max_iter`` is not used (kept for the callers).
     """
     scale = est.sigma_scale or {}
     blocks = [replace(b, sigma=b.sigma * scale.get(b.kind, 1.0)) for b in blocks]
     chi2_all = sum(r["chi2"] for r in est.residuals.values())
+    try:
+        p = check_start(names, est.params)
+        coords = Coords(names, p, "log")
+        preds, jacs = Problem(blocks, coords).block_jacobians(np.zeros(len(names)))
+        tp, w = prior_arrays(prior, coords, p)
+    except (IdentificationError, ValueError):
+        return []
     chi2_sep, sep = 0.0, {}
     for kind in dict.fromkeys(b.kind for b in blocks):
-        bk = [b for b in blocks if b.kind == kind]
-        try:
-            # a partial minimisation only understates the excess (conservative)
-            e = estimate(bk, names, est.params, prior=prior, max_iter=min(max_iter, 20))
-        except (IdentificationError, ValueError):
-            return []
-        chi2_sep += sum(r["chi2"] for r in e.residuals.values())
-        sep[kind] = e
+        sel = [i for i, b in enumerate(blocks) if b.kind == kind]
+        r = np.concatenate([(preds[i] - blocks[i].observed) / blocks[i].sigma for i in sel])
+        J = np.vstack([jacs[i] for i in sel])
+        # min |r + J d|^2 + |w (d - tp)|^2 over the log-parameter change d
+        A = np.vstack([J, np.diag(w)])
+        d = np.linalg.lstsq(A, -np.concatenate([r, -w * tp]), rcond=None)[0]
+        chi2_sep += float(np.sum((r + J @ d) ** 2))
+        sd = np.sqrt(np.diag(laplace([J], w)))      # log-parameter std of this data set alone
+        sep[kind] = (d, sd)
     # degrees of freedom of the excess: the combinations every data set sees
     # (whitened singular values above 1, i.e. constrained better than a factor e)
     k = min(sum(1 for sv in est.identifiability["data_sets"][kind]["singular_values"] if sv > 1.0)
@@ -123,8 +138,7 @@ def consistency(blocks: Sequence[DataBlock], est: Estimate, names: Sequence[str]
     # (only where that std is meaningful, < 50 %)
     pulls = []
     for j, n in enumerate(names):
-        d = [abs(np.log(e.values[j] / est.values[j])) / e.rel_std[n] for e in sep.values()
-             if e.rel_std[n] < 0.5]
+        d = [abs(dk[j]) / sd[j] for dk, sd in sep.values() if sd[j] < 0.5]
         if d:
             pulls.append((max(d), n))
     pulls.sort(reverse=True)

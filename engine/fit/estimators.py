@@ -28,7 +28,7 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 from scipy.optimize import minimize
 
-from .lm import levenberg_marquardt
+from .lm import STALLED, levenberg_marquardt
 from .problem import (Coords, DataBlock, IdentificationError, Params, Prior, Problem, check_start,
                       prior_arrays)
 from .uncertainty import Estimate, finish_estimate
@@ -40,7 +40,7 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
              prior: Prior | float | None = 1.0, space: str = "log", max_iter: int = 50,
              xtol: float = 1e-9, max_step: float = 0.7, rel_threshold: float = 0.1,
              dtol: float = 1e-12, mu0: float = 1e-3, continuation: bool = True, broyden: bool = True,
-             callback: Callable[[dict], None] | None = None) -> Estimate:
+             callback: Callable[[dict], None] | None = None, give_up: float | None = None) -> Estimate:
     """Combined weighted least squares (Levenberg-Marquardt) with Laplace covariance.
 
     Minimises ``sum_b |(y_b(p) - obs_b) / sigma_b|^2 + |w (theta - theta_prior)|^2``
@@ -57,7 +57,9 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
     while the well-identified ones are still far from their values. With
     ``broyden``, blocks without analytic Jacobian (finite differences) get
     rank-one Broyden updates between fresh difference Jacobians (refreshed
-    when steps fail and always before declaring convergence).
+    when steps fail and always before declaring convergence). ``give_up``: a chi^2 above
+    which a stalled descent stops early, not converged (``engine.fit.lm.STALLED``: a
+    candidate start in the wrong basin need not be fitted to the end).
     """
     t0 = time.perf_counter()
     p_start = check_start(names, start)
@@ -80,9 +82,9 @@ def estimate(blocks: Sequence[DataBlock], names: Sequence[str], start: Params, *
         theta, converged, n_it, message = levenberg_marquardt(prob, theta, tp, ws, xtol if last else max(xtol, 1e-3),
                                               dtol if last else -1.0,
                                               max_iter - total_it, max_step, mu0, history, total_it,
-                                              callback, broyden)
+                                              callback, broyden, None if give_up is None else 0.5 * give_up)
         total_it += n_it
-        if total_it >= max_iter:
+        if total_it >= max_iter or message == STALLED:
             break
     return finish_estimate(prob, theta, tp, w, converged, total_it, history, dict(zip(names, p_start)),
                    f"levenberg-marquardt/{space}", message, warnings, t0, rel_threshold)

@@ -20,7 +20,6 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy.linalg import eigh
 from scipy.stats import qmc
 
 from ..laminate import PhysicsError
@@ -70,6 +69,10 @@ class RitzSurrogate:
         keep = w > 1e-12 * w.max()
         T = V @ (U[:, keep] / np.sqrt(w[keep]))        # M-orthonormal basis
         self.T = T
+        # the projection needs only the DOFs the basis moves: bending modes of a symmetric
+        # layup leave the membrane DOFs exactly 0 (K restricted there: ~1/3 of the entries)
+        live = np.flatnonzero(np.any(T != 0.0, axis=1))
+        Tl = T[live]
         # K_r at the start and with each constant 10 % up (and down) -> constant part plus
         # one matrix per q component (least squares: exact, K is linear in q)
         factors = (1.1,) if len(start) >= 6 else (1.05, 0.95, 1.1, 0.9)   # isotropic: q not linear in (E, G)
@@ -81,7 +84,7 @@ class RitzSurrogate:
             except (PhysicsError, ValueError):   # a probe past the admissible edge: skipped
                 continue
             rows.append(np.concatenate([[1.0], self._q(p) / 1e9]))
-            mats.append(T.T @ (K @ T))
+            mats.append(Tl.T @ (K[live][:, live] @ Tl))
         A = np.array(rows)
         coef, *_ = np.linalg.lstsq(A, np.array(mats).reshape(len(mats), -1), rcond=None)
         self.parts = coef.reshape(A.shape[1], T.shape[1], T.shape[1])
@@ -96,8 +99,10 @@ class RitzSurrogate:
         """The ``n_modes`` lowest elastic Ritz frequencies (Hz) at ``params``."""
         q = np.concatenate([[1.0], self._q(params) / 1e9])
         Kr = np.tensordot(q, self.parts, axes=1)
-        # the basis holds elastic modes only: no rigid-body (zero) eigenvalue to remove
-        lam = eigh(0.5 * (Kr + Kr.T), eigvals_only=True, subset_by_index=(0, self.n - 1))
+        # the basis holds elastic modes only: no rigid-body (zero) eigenvalue to remove. All
+        # eigenvalues (LAPACK syevd) take 1.8 ms against 5.1 ms for the lowest n alone (syevr)
+        # on the demo's 211-vector basis; the same values to 3e-15
+        lam = np.linalg.eigvalsh(0.5 * (Kr + Kr.T))[:self.n]
         return np.sqrt(np.maximum(lam, 0.0)) / (2.0 * np.pi)
 
 

@@ -17,10 +17,13 @@ Modules (each readable alone):
   (the measured reason for the hand-made pattern is in its docstring);
 * :mod:`.model` -- ``PlateModel`` (precomputed parts, solve per parameter set,
   point masses, springs, stiffness loss, thickness field, sensitivities) and ``Modes``;
-* :mod:`.labels` -- mode family labels (m, n) from the shapes (``mode_families``).
+* :mod:`.labels` -- mode family labels (m, n) from the shapes (``mode_families``);
+* :mod:`.sensitivity` -- eigenvalue sensitivities from one solve: per laminate coefficient
+  and inertia (``PlateModel.eigen_sensitivities``), and to the geometry, density and point
+  mass positions (``geometry_sensitivities``).
 
 Public API (re-exported here): ``PlateModel``, ``Modes``, ``Mesh``, ``FEError``,
-``natural_frequencies``, ``mode_families``, ``coefficients_from_abdh``, ``DEFAULT_ELEMENTS``,
+``natural_frequencies``, ``mode_families``, ``geometry_sensitivities``, ``coefficients_from_abdh``, ``DEFAULT_ELEMENTS``,
 ``EDGE_LAYER``, ``COEF_NAMES``, ``Q_NAMES``, ``NODE_DOF``.
 
 The workflow (run by the test suite as a doctest): a laminate, a mesh, the model built
@@ -46,14 +49,16 @@ Package-internal (public names shared by the modules of this package; not for
 other layers): ``element.shape_2d``, ``element.combo_scales``,
 ``element.reference_matrices``, ``element.SYM3``/``SYM2``, ``stiffness.q_vector``,
 ``stiffness.q_derivatives``, ``stiffness.material_maps``, ``sparse.Pattern``,
-``sparse.Block``, ``sparse.point_matrix``, ``field.COEF_POWER``, ``field.thickness_weights``,
-``field.field_scatter``.
+``sparse.Block``, ``sparse.point_entries``, ``sparse.Added``, ``field.COEF_POWER``, ``field.thickness_weights``,
+``field.field_data``, ``sensitivity.coefficient_energies``.
 """
 from .element import NODE_DOF, FEError
 from .labels import mode_families
 from .mesh import DEFAULT_ELEMENTS, EDGE_LAYER, Mesh
 from .model import Modes, PlateModel, natural_frequencies
+from .sensitivity import geometry_sensitivities
 from .stiffness import COEF_NAMES, Q_NAMES, coefficients_from_abdh
 
-__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "mode_families", "coefficients_from_abdh",
+__all__ = ["Mesh", "Modes", "PlateModel", "natural_frequencies", "mode_families", "geometry_sensitivities",
+           "coefficients_from_abdh",
            "DEFAULT_ELEMENTS", "EDGE_LAYER", "COEF_NAMES", "Q_NAMES", "NODE_DOF", "FEError"]

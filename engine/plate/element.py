@@ -22,9 +22,12 @@ Units SI: m, kg, s, Pa. The reference matrices are per unit stiffness coefficien
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
-__all__ = ["FEError", "NODE_DOF", "SYM3", "SYM2", "shape_2d", "combo_scales", "reference_matrices"]
+__all__ = ["FEError", "NODE_DOF", "SYM3", "SYM2", "shape_2d", "combo_scales", "reference_matrices",
+           "reference_by_coefficient", "reference_by_combo"]
 
 NODE_DOF = 5   # (u0, v0, w0, bx, by); global DOF = 5 node + k
 _NODES_1D = np.array([-1.0, -1.0 / 3.0, 1.0 / 3.0, 1.0])
@@ -72,12 +75,38 @@ def combo_scales(h: np.ndarray) -> np.ndarray:
     return np.column_stack([hx * hy / 4.0, hy / 2.0, hx / 2.0, hy / hx, np.ones_like(hx), hx / hy])
 
 
+@lru_cache(maxsize=1)
+def reference_by_coefficient() -> np.ndarray:
+    """The reference K as (21 coefficients, 6 combos x 6400), contiguous: one matrix product
+    with the coefficients gives the unit element matrix per combo. The one stored copy of
+    the reference K (read-only): :func:`reference_matrices` and :func:`reference_by_combo`
+    are views of it (each ``PlateModel`` held two 6.2 MB copies, 55 MB in a 3-constant
+    diagnosis; bench/RESULTS.md, issue 29)."""
+    K = np.ascontiguousarray(_reference_matrices()[0].transpose(1, 0, 2, 3).reshape(21, -1))
+    K.flags.writeable = False
+    return K
+
+
+def reference_by_combo() -> np.ndarray:
+    """The reference K as (6 combos, 6400, 21) (a view: per combo a BLAS-ready transposed
+    block, for the sensitivities' products)."""
+    return reference_by_coefficient().reshape(21, 6, 6400).transpose(1, 2, 0)
+
+
+@lru_cache(maxsize=1)
 def reference_matrices() -> tuple[np.ndarray, np.ndarray]:
     """Reference element matrices: K (6 combos, 21 coefs, 80, 80), M (3 inertias, 80, 80).
 
     The unit stiffness of coefficient i of an element (hx, hy) is
-    sum_pq s_pq(hx, hy) K[pq, i]; its unit mass is s_00 M.
+    sum_pq s_pq(hx, hy) K[pq, i]; its unit mass is s_00 M. Computed once and shared by every
+    model, read-only (K a view of :func:`reference_by_coefficient`).
     """
+    M = _reference_matrices()[1]
+    M.flags.writeable = False
+    return reference_by_coefficient().reshape(21, 6, 80, 80).transpose(1, 0, 2, 3), M
+
+
+def _reference_matrices() -> tuple[np.ndarray, np.ndarray]:
     XI, ETA = np.meshgrid(_G4, _G4, indexing="ij")
     xi, eta = XI.ravel(), ETA.ravel()
     w = np.outer(_W4, _W4).ravel()

@@ -4,21 +4,21 @@ Scaling every ply of an element by s (mid-plane fixed) scales the ply interfaces
 z -> s z, so the laminate coefficients go with powers of s: A and H ~ s, B ~ s^2,
 D ~ s^3, and the inertias I1, I2, I3 ~ s, s^2, s^3 (``COEF_POWER``). The
 element matrices stay linear in the 21 coefficients: one element matrix per
-element type and power, and one weighted scatter of fixed pattern (built once
-per field) keep the re-solve for new constants free of element loops.
+element type and power, weighted per element and summed into the fixed pattern
+(``field_data``, one ``np.bincount``), keep the re-solve for new constants free of
+element loops.
 
 Units: s dimensionless; x, y in m.
 """
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from .element import FEError
 from .mesh import Mesh
 from .sparse import Pattern
 
-__all__ = ["COEF_POWER", "thickness_weights", "field_scatter"]
+__all__ = ["COEF_POWER", "thickness_weights", "field_data"]
 
 #: power of the thickness scale s of each stiffness coefficient (COEF_NAMES order)
 COEF_POWER = np.array([1] * 6 + [2] * 6 + [3] * 6 + [1] * 3)
@@ -51,12 +51,11 @@ def thickness_weights(mesh: Mesh, scale) -> np.ndarray:
     return np.stack([s, s**2, s**3])
 
 
-def field_scatter(pat: Pattern, tw: np.ndarray) -> sp.csr_matrix:
-    """(nnz, 3 n_types 6400): element data per type and power of s (stacked p = 1, 2, 3)
-    to the global data, each element weighted by its mean s^p (``tw`` from thickness_weights)."""
-    nt = pat.type_scales.shape[0]
-    rows = np.tile(pat.elem_pos.ravel(), 3)
-    local = (pat.elem_type[:, None] * 6400 + np.arange(6400)).ravel()
-    cols = np.concatenate([local + p * nt * 6400 for p in range(3)])
-    data = np.repeat(tw, 6400, axis=1).ravel()
-    return sp.csr_matrix((data, (rows, cols)), shape=(pat.indices.size, 3 * nt * 6400))
+def field_data(pat: Pattern, tw: np.ndarray, per_power: np.ndarray) -> np.ndarray:
+    """Global data (nnz,) of element matrices given per power of s and element type,
+    ``per_power`` (3, n_types, 6400), each element weighted by its mean s^p (``tw`` from
+    thickness_weights). Summed per entry by ``np.bincount`` on the element positions: no
+    weighted scatter matrix (it took 9.4 MB per field and ~47 MB while built, the peak of
+    a 3-constant diagnosis; bench/RESULTS.md, issue 29)."""
+    elem = np.einsum("pe,pek->ek", tw, per_power[:, pat.elem_type])           # (n_elements, 6400)
+    return np.bincount(pat.elem_pos.ravel(), weights=elem.ravel(), minlength=pat.indices.size)

@@ -19,10 +19,11 @@ import scipy.sparse as sp
 from scipy.linalg import eigh as sl_eigh
 
 from ..laminate import Laminate, Material
-from .element import NODE_DOF, FEError, reference_matrices, shape_2d
-from .field import COEF_POWER, field_scatter, thickness_weights
+from .element import NODE_DOF, FEError, reference_by_coefficient, reference_matrices, shape_2d
+from .field import COEF_POWER, field_data, thickness_weights
 from .mesh import Mesh
-from .sparse import Block, Pattern, point_matrix
+from .sensitivity import coefficient_energies
+from .sparse import Added, Block, Pattern, point_entries
 from .stiffness import material_maps, q_derivatives, q_vector
 
 __all__ = ["Modes", "PlateModel", "natural_frequencies"]
@@ -60,21 +61,19 @@ class PlateModel:
             Kref, Mref = reference_matrices()
             _parts = (Kref, Mref, Pattern.build(mesh), material_maps(laminate, shear_factor))
         self._Ke, self._Me, self._pat, self._maps = _parts
-        self._Kflat = np.ascontiguousarray(self._Ke.transpose(1, 0, 2, 3).reshape(21, -1))
-        nnz = self._pat.indices.size
-        self._k_add = np.zeros(nnz) if k_add is None else k_add
-        self._m_add = np.zeros(nnz) if m_add is None else m_add
+        self._Kflat = reference_by_coefficient()   # (21, 6 x 6400): shared, read-only
+        self._k_add = Added.none() if k_add is None else k_add
+        self._m_add = Added.none() if m_add is None else m_add
         cross = self._pat.cross
-        self._add_cross = bool(np.any(self._k_add[cross] != 0) or np.any(self._m_add[cross] != 0))
+        self._add_cross = self._k_add.any_at(cross) or self._m_add.any_at(cross)
         self._cache: dict = {} if _cache is None else _cache  # mesh-only data, shared by derived models
         self._mass_memo: dict | None = None  # mass data of the last inertias (see _mass)
         self._mem_memo: dict | None = None   # last membrane solve (see _membrane_modes)
         # no added stiffness on the membrane DOFs (the membrane eigenvalue bound needs it)
         fr = np.repeat(np.arange(len(self._pat.indptr) - 1), np.diff(self._pat.indptr)) % NODE_DOF
-        self._membrane_k_free = not np.any(self._k_add[(fr < 2) & (self._pat.indices % NODE_DOF < 2)])
+        self._membrane_k_free = not self._k_add.any_at((fr < 2) & (self._pat.indices % NODE_DOF < 2))
         # thickness field: (3, n_elements) element means of s, s^2, s^3 (None: uniform s = 1)
         self._tw = None if thickness_weights is None else np.asarray(thickness_weights, float)
-        self._tw_scatter = None   # weighted element scatter of the field (see _field_scatter)
 
     # -- construction ---------------------------------------------------
     @classmethod
@@ -102,14 +101,14 @@ class PlateModel:
     @property
     def k_add(self) -> np.ndarray:
         """Added stiffness (springs, stiffness loss) on the sparse pattern's entries (read-only)."""
-        v = self._k_add.view()
+        v = self._k_add.dense(self._pat.indices.size)
         v.flags.writeable = False
         return v
 
     @property
     def m_add(self) -> np.ndarray:
         """Added mass (point masses) on the sparse pattern's entries (read-only)."""
-        v = self._m_add.view()
+        v = self._m_add.dense(self._pat.indices.size)
         v.flags.writeable = False
         return v
 
@@ -150,15 +149,10 @@ class PlateModel:
             return self._derived(thickness_weights=None)
         return self._derived(thickness_weights=thickness_weights(self.mesh, scale))
 
-    def _field_scatter(self) -> sp.csr_matrix:
-        if self._tw_scatter is None:
-            self._tw_scatter = field_scatter(self._pat, self._tw)
-        return self._tw_scatter
-
     def with_point_masses(self, masses: Iterable[Sequence[float]]) -> "PlateModel":
         """Add point masses (x, y, m) or (x, y, m, Ix, Iy): m in kg on u0, v0, w0;
         rotary inertias in kg m^2, Ix about the x axis (acts on by), Iy about y (on bx)."""
-        add = self._m_add.copy()
+        add = self._m_add
         for row in masses:
             row = tuple(float(v) for v in row)
             if len(row) not in (3, 5):
@@ -167,17 +161,17 @@ class PlateModel:
             Ix, Iy = row[3:] if len(row) == 5 else (0.0, 0.0)
             if not (m >= 0 and Ix >= 0 and Iy >= 0):
                 raise FEError(f"point mass {row!r}: expected non-negative mass and inertias")
-            add += point_matrix(self.mesh, self._pat, x, y, (m, m, m, Iy, Ix))
+            add = add.plus(*point_entries(self.mesh, self._pat, x, y, (m, m, m, Iy, Ix)))
         return self._derived(m_add=add)
 
     def with_springs(self, springs: Iterable[Sequence[float]]) -> "PlateModel":
         """Add grounded transverse springs (x, y, kz) on w0, kz in N/m."""
-        add = self._k_add.copy()
+        add = self._k_add
         for row in springs:
             row = tuple(float(v) for v in row)
             if len(row) != 3 or not row[2] >= 0:
                 raise FEError(f"spring {row!r}: expected (x, y, kz_N_per_m) with kz >= 0")
-            add += point_matrix(self.mesh, self._pat, row[0], row[1], (0, 0, row[2], 0, 0))
+            add = add.plus(*point_entries(self.mesh, self._pat, row[0], row[1], (0, 0, row[2], 0, 0)))
         return self._derived(k_add=add)
 
     def with_stiffness_loss(self, x0: float, y0: float, size: float, loss: float,
@@ -198,13 +192,16 @@ class PlateModel:
         xe, ye = self.mesh.xe, self.mesh.ye
         ox = np.clip(np.minimum(xe[1:], x0 + size / 2) - np.maximum(xe[:-1], x0 - size / 2), 0, None) / np.diff(xe)
         oy = np.clip(np.minimum(ye[1:], y0 + size / 2) - np.maximum(ye[:-1], y0 - size / 2), 0, None) / np.diff(ye)
-        add = self._k_add.copy()
+        pos, vals = [], []
         for ey in np.flatnonzero(oy):
             for ex in np.flatnonzero(ox):
                 e = ey * self.mesh.nx + ex
                 Ke = tw[:, e] @ Ke_type[:, pat.elem_type[e]]
-                np.add.at(add, pat.elem_pos[e], -loss * ox[ex] * oy[ey] * Ke)
-        return self._derived(k_add=add)
+                pos.append(pat.elem_pos[e])
+                vals.append(-loss * ox[ex] * oy[ey] * Ke)
+        if not pos:
+            return self._derived()
+        return self._derived(k_add=self._k_add.plus(np.concatenate(pos), np.concatenate(vals)))
 
     # -- parameters -----------------------------------------------------
     def _material_name(self, material: str | None) -> str:
@@ -239,45 +236,49 @@ class PlateModel:
     def matrices(self, params=None, material=None) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """Global K (N/m) and M (kg), CSR (M on its own, sparser pattern)."""
         c, inert = self.coefficients(params, material)
-        kd, _ = self._data(c, inert)
-        return self._pat.matrix(kd), self._mass(inert)["M"].copy()
+        return self._pat.matrix(self._data(c, inert)), self._mass(inert)["M"].copy()
 
-    def _data(self, c: np.ndarray, inert: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """K and M data vectors on the common pattern."""
+    def _data(self, c: np.ndarray, inert: np.ndarray) -> np.ndarray:
+        """K data on the common pattern (M: :meth:`_mass`)."""
         pat = self._pat
         if self._tw is not None:   # thickness field: one element matrix per type and power of s
             Kc = np.stack([((c * (COEF_POWER == p)) @ self._Kflat).reshape(6, 6400) for p in (1, 2, 3)])
-            kd = self._field_scatter() @ (pat.type_scales @ Kc).ravel() + self._k_add
-            return kd, self._mass(inert)["md"]
+            return self._k_add.add_to(field_data(pat, self._tw, pat.type_scales @ Kc))
         Kc = (c @ self._Kflat).reshape(6, 6400)   # unit element matrix per scale combo
-        kd = pat.scatter @ (pat.type_scales @ Kc).ravel() + self._k_add
-        return kd, self._mass(inert)["md"]
+        return self._k_add.add_to(pat.scatter @ (pat.type_scales @ Kc).ravel())
 
     def _mass(self, inert: np.ndarray) -> dict:
         """Mass-side data for inertias (I1, I2, I3), memoised for the last inertias
         (M depends on the density only, fixed during most identifications):
-        ``md`` (data on the common pattern), ``M`` (global CSR) and, filled on
-        demand, ``MR`` (M times the rigid-body vectors), ``G`` (R' M R) and
-        per-block ``(mb, Mb)``."""
+        ``M`` (global CSR) and, filled on demand, ``MR`` (M times the rigid-body vectors),
+        ``G`` (R' M R), per-block ``(mb, Mb)`` and, until the first solve has built the
+        block masses, ``md`` (the data on the common pattern: 2.9 MB on the demo's mesh,
+        not kept by every cached model of a diagnosis)."""
         key = np.asarray(inert, dtype=float).tobytes()
         memo = self._mass_memo
         if memo is None or memo["key"] != key:
-            pat = self._pat
-            inert = np.asarray(inert, dtype=float)
-            if self._tw is not None:   # I1, I2, I3 go with s, s^2, s^3
-                Mc = (inert[:, None] * self._Me.reshape(3, -1))                       # (3, 6400)
-                md = self._field_scatter() @ (pat.type_scales[None, :, 0, None] * Mc[:, None, :]).ravel() \
-                    + self._m_add
-            else:
-                Mc = np.tensordot(inert, self._Me, 1).ravel()
-                md = pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel() + self._m_add
-            md.flags.writeable = False
-            memo = self._mass_memo = {"key": key, "md": md, "M": pat.mass_matrix(md)}
+            md = self._mass_data(inert)
+            memo = self._mass_memo = {"key": key, "md": md, "M": self._pat.mass_matrix(md)}
         return memo
+
+    def _mass_data(self, inert: np.ndarray) -> np.ndarray:
+        """M data on the common pattern (read-only)."""
+        pat = self._pat
+        inert = np.asarray(inert, dtype=float)
+        if self._tw is not None:   # I1, I2, I3 go with s, s^2, s^3
+            Mc = (inert[:, None] * self._Me.reshape(3, -1))                       # (3, 6400)
+            md = self._m_add.add_to(field_data(pat, self._tw, pat.type_scales[None, :, 0, None] * Mc[:, None, :]))
+        else:
+            Mc = np.tensordot(inert, self._Me, 1).ravel()
+            md = self._m_add.add_to(pat.scatter @ np.outer(pat.type_scales[:, 0], Mc).ravel())
+        md.flags.writeable = False
+        return md
 
     def _block_mass(self, name: str, inert: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
         memo = self._mass(inert)
         if name not in memo:
+            if "md" not in memo:        # released after the first solve (see solve_coefficients)
+                memo["md"] = self._mass_data(inert)
             memo[name] = self._block(name).mass(memo["md"])
         return memo[name]
 
@@ -317,7 +318,7 @@ class PlateModel:
             raise FEError(f"n_modes = {n_modes!r}: expected a positive integer")
         n_modes = int(n_modes)
         c, inert = np.asarray(c, dtype=float), np.asarray(inertias, dtype=float)
-        kd, md = self._data(c, inert)
+        kd = self._data(c, inert)
         n = self.mesh.n_dof
         if n_modes + 6 + _SPARE >= 0.4 * n - 1:
             raise FEError(f"n_modes = {n_modes}: too many for a mesh of {n} DOF")
@@ -327,7 +328,7 @@ class PlateModel:
         coupled = (self._add_cross or np.abs(c[6:12]).max() > 1e-10 * np.abs(c[:6]).max() * h
                    or abs(inert[1]) > 1e-10 * inert[0] * h)
         if coupled:
-            lam, vec = self._block("all").eig(kd, md, n_modes + 6 + _SPARE, sigma, n,
+            lam, vec = self._block("all").eig(kd, None, n_modes + 6 + _SPARE, sigma, n,
                                               self._block_mass("all", inert))
         else:
             # B = 0, I2 = 0: bending (w0, bx, by) and membrane (u0, v0) decouple;
@@ -335,7 +336,7 @@ class PlateModel:
             # ncv = k + 13: ~11 % faster than 2k + 1 for 10 CFRP modes (bench/RESULTS.md,
             # Identification), eigenvalues equal to 1e-12
             kb = n_modes + 3 + _SPARE
-            lam, vec = self._block("bending").eig(kd, md, kb, sigma, n, self._block_mass("bending", inert),
+            lam, vec = self._block("bending").eig(kd, None, kb, sigma, n, self._block_mass("bending", inert),
                                                   ncv=max(kb + 13, 20))
             top = np.sort(lam)[min(3 + n_modes, lam.size) - 1]
             lam_m, vec_m = self._membrane_modes(kd, c, inert, top, sigma, n)
@@ -354,6 +355,7 @@ class PlateModel:
         if lam_e.size < n_modes:
             raise FEError("eigen solver returned too few elastic modes")
         rigid_max = float(np.sqrt(np.max(np.abs(lam[rigid]))))
+        self._mass(inert).pop("md", None)     # the block masses are built: M's data not kept
         return Modes(np.sqrt(np.maximum(lam_e, 0.0)) / (2.0 * np.pi), lam_e, vec_e, rigid_max)
 
     def _membrane_modes(self, kd: np.ndarray, c: np.ndarray, inert: np.ndarray, top: float,
@@ -382,7 +384,7 @@ class PlateModel:
                 return memo["lam_rigid"], memo["vec_rigid"]
         km, nm = 6, blk.dofs.size
         while True:
-            lam_m, vec_m = blk.eig(kd, self._mass(inert)["md"], km, sigma, n, mass)
+            lam_m, vec_m = blk.eig(kd, None, km, sigma, n, mass)
             if lam_m.max() > top or km >= 0.4 * nm:
                 break
             km *= 2
@@ -447,34 +449,7 @@ class PlateModel:
         L, R = self._maps[name]
         dc = L @ dq[:6]                                 # (21, P)
         dI = np.outer(R, dq[6])                         # (3, P)
-        pat = self._pat
-        phi = modes.shapes[self.mesh.element_dofs].transpose(2, 0, 1)   # (m, ne, 80)
-        m = phi.shape[0]
-        nt = pat.type_scales.shape[0]
-        if "Ke_rows" not in self._cache:   # (6, 6400, 21) reference K per combo, 21 columns
-            self._cache["Ke_rows"] = np.ascontiguousarray(self._Ke.reshape(6, 21, 6400).transpose(0, 2, 1))
-        Kr = self._cache["Ke_rows"]
-        Me = self._Me.reshape(3, 6400).T                                # (6400, 3)
-
-        def energies(w):
-            # S[t, mode] = sum over elements of type t of w_e phi_e phi_e' (80 x 80), by matmul
-            S = np.empty((nt, m, 80, 80))
-            pw = phi if w is None else phi * w[None, :, None]
-            for t in range(nt):
-                sel = pat.elem_type == t
-                ph, phw = (phi[:, sel], pw[:, sel]) if nt > 1 else (phi, pw)
-                np.matmul(phw.transpose(0, 2, 1), ph, out=S[t])
-            Sc = (pat.type_scales.T @ S.reshape(nt, -1)).reshape(6, m, 6400)  # per scale combo
-            return sum(Sc[p] @ Kr[p] for p in range(6)), Sc[0] @ Me          # (m, 21), (m, 3)
-
-        if self._tw is None:
-            eK, eM = energies(None)
-        else:   # thickness field: coefficient k and inertia j go with s^power
-            eK, eM = np.zeros((m, 21)), np.zeros((m, 3))
-            for p in (1, 2, 3):
-                k, mm = energies(self._tw[p - 1])
-                eK[:, COEF_POWER == p] = k[:, COEF_POWER == p]
-                eM[:, p - 1] = mm[:, p - 1]
+        eK, eM = coefficient_energies(self, modes)
         return eK @ dc - modes.omega2[:, None] * (eM @ dI)
 
 

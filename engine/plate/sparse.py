@@ -30,7 +30,7 @@ import scipy.sparse.linalg as spla
 from .element import NODE_DOF, combo_scales, shape_2d
 from .mesh import Mesh
 
-__all__ = ["Pattern", "Block", "point_matrix"]
+__all__ = ["Pattern", "Block", "point_entries", "Added"]
 
 
 @dataclass(frozen=True)
@@ -143,9 +143,10 @@ class Block:
         return lam, full
 
 
-def point_matrix(mesh: Mesh, pat: Pattern, x: float, y: float,
-                  diag: Sequence[float]) -> np.ndarray:
-    """Data vector of sum_k diag[k] N_k' N_k for the 5 DOF fields at one point."""
+def point_entries(mesh: Mesh, pat: Pattern, x: float, y: float,
+                  diag: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """(positions in the pattern's data, values) of sum_k diag[k] N_k' N_k for the 5 DOF
+    fields at one point (one element's 6400 entries)."""
     e, xi, eta = mesh.locate([[x, y]])
     N, _, _ = shape_2d(xi, eta)
     NN = np.outer(N[0], N[0])
@@ -153,6 +154,47 @@ def point_matrix(mesh: Mesh, pat: Pattern, x: float, y: float,
     for k, v in enumerate(diag):
         if v:
             Me[:, k, :, k] = v * NN
-    data = np.zeros(pat.indices.size)
-    np.add.at(data, pat.elem_pos[e[0]], Me.ravel())
-    return data
+    return pat.elem_pos[e[0]], Me.ravel()
+
+
+@dataclass(frozen=True)
+class Added:
+    """Stiffness or mass added to a pattern's data (springs, point masses, a stiffness loss):
+    sorted unique positions and their values. Kept sparse: a full-length array per model
+    (2.9 MB on the demo's mesh, mostly zeros) made ~20 MB of a 3-constant diagnosis' peak,
+    whose effect refits keep several models (bench/RESULTS.md, issue 29)."""
+
+    idx: np.ndarray
+    val: np.ndarray
+
+    @classmethod
+    def none(cls) -> "Added":
+        return cls(np.zeros(0, np.int64), np.zeros(0))
+
+    def plus(self, pos: np.ndarray, vals: np.ndarray) -> "Added":
+        """These values added at ``pos`` (repeats within ``pos`` summed in order first).
+        Merged into the sorted positions (a diagnosis adds masses to models that hold
+        200 000 entries: a full re-sort per mass cost it 1.3 s CPU)."""
+        u, inv = np.unique(np.asarray(pos, np.int64).ravel(), return_inverse=True)
+        nv = np.bincount(inv.ravel(), weights=np.asarray(vals, float).ravel(), minlength=u.size)
+        loc = np.searchsorted(self.idx, u)
+        found = loc < self.idx.size
+        found[found] = self.idx[loc[found]] == u[found]
+        val = self.val.copy()
+        val[loc[found]] += nv[found]
+        new = ~found
+        return Added(np.insert(self.idx, loc[new], u[new]), np.insert(val, loc[new], nv[new]))
+
+    def add_to(self, data: np.ndarray) -> np.ndarray:
+        """``data`` (owned by the caller) with the values added in place."""
+        data[self.idx] += self.val
+        return data
+
+    def dense(self, n: int) -> np.ndarray:
+        out = np.zeros(n)
+        out[self.idx] = self.val
+        return out
+
+    def any_at(self, mask: np.ndarray) -> bool:
+        """True when a non-zero value sits where ``mask`` (over the data) is True."""
+        return bool(np.any(self.val[mask[self.idx]] != 0))

@@ -15,10 +15,14 @@ hardware.
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
 import sys
 import time
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from .. import services
 from ..base.errors import UserError
@@ -103,9 +107,84 @@ def _waves_only(out: Path, seed: int, step: Callable[[str], None], report: Calla
             "files": {"run": str(run), "features": str(feats_path)}}
 
 
+# -- the second process (issue 29) ----------------------------------------------------------
+# The waves-only section and the modal-only and waves-only identifications depend on nothing
+# the combined identification, the diagnosis and the report need: with two cores they run in
+# one worker process while the main process does the rest (bench/RESULTS.md, issue 29).
+def default_workers() -> int:
+    """2 when this process may run on two cores or more, else 1 (everything in this process)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:          # no affinity on this platform
+        cores = os.cpu_count() or 1
+    return 2 if cores >= 2 else 1
+
+
+def _waves_only_task(out: Path, seed: int) -> tuple[dict, list[tuple[str, str]]]:
+    """Section 6 in the worker: its result and its console lines (kind, text), replayed in order."""
+    lines: list[tuple[str, str]] = []
+    res = _waves_only(out, seed, lambda m: lines.append(("step", m)), lambda m: lines.append(("report", m)))
+    return res, lines
+
+
+def _identify_task(doc: dict, out: Path, src: str, start: dict, budget: bool):
+    """(Identification, wall s, CPU s) of one data set, timed where it runs."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    res = services.run_identification(doc, base_dir=out, src=src, start=start, budget=budget)
+    return res, time.perf_counter() - t0, time.process_time() - c0
+
+
+class _Later:
+    """A finished computation with the interface of a Future (the single-process path)."""
+
+    def __init__(self, fn: Callable, *args):
+        self.fn, self.args = fn, args
+
+    def result(self) -> Any:
+        return self.fn(*self.args)
+
+
+def _submit(pool: ProcessPoolExecutor | None, fn: Callable, *args) -> Future | _Later:
+    """``fn(*args)`` in the worker (None, or a worker that died: here, when asked for)."""
+    if pool is not None:
+        try:
+            fut = pool.submit(fn, *args)
+            return _Guarded(fut, fn, args)
+        except (BrokenProcessPool, RuntimeError):
+            pass
+    return _Later(fn, *args)
+
+
+class _Guarded:
+    """A worker's Future whose result is computed here if the worker died (e.g. killed)."""
+
+    def __init__(self, fut: Future, fn: Callable, args: tuple):
+        self.fut, self.fn, self.args = fut, fn, args
+
+    def result(self) -> Any:
+        try:
+            return self.fut.result()
+        except BrokenProcessPool:
+            return self.fn(*self.args)
+
+
+def _pool(workers: int) -> ProcessPoolExecutor | None:
+    if workers < 2:
+        return None
+    methods = multiprocessing.get_all_start_methods()
+    # fork: the worker starts with the imports done (spawn would repeat ~1.5 s of them)
+    ctx = multiprocessing.get_context("fork" if "fork" in methods else None)
+    return ProcessPoolExecutor(max_workers=1, mp_context=ctx)
+
+
 def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | None = None,
-             waves: int | None = None, report: Callable[[str], None] = print) -> dict:
-    """Run the demo into ``out_dir``; return the JSON-ready summary."""
+             waves: int | None = None, report: Callable[[str], None] = print,
+             workers: int | None = None) -> dict:
+    """Run the demo into ``out_dir``; return the JSON-ready summary. ``workers``: 2 runs the
+    independent stages in a second process (default :func:`default_workers`), 1 none."""
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 1:
+        raise UserError(f"value {workers!r}: expected 1 or more worker processes", key="--workers")
     t_start = time.perf_counter()
     out = Path(out_dir)
     try:
@@ -121,6 +200,25 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     def step(msg: str) -> None:
         report(f"[{time.perf_counter() - t_start:6.1f} s] {msg}")
 
+    pool = _pool(workers)
+    try:
+        return _run_demo(out, run, spec, truth, seed, hits, waves, report, step, t_start, pool)
+    except BaseException:
+        # interrupted or failed: the worker's job is not waited for (ProcessPoolExecutor has no
+        # public way to stop a running task before Python 3.14's terminate_workers)
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        raise
+    finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _run_demo(out: Path, run: Path, spec, truth: dict, seed: int, hits: int | None, waves: int | None,
+              report: Callable[[str], None], step: Callable[[str], None], t_start: float,
+              pool: ProcessPoolExecutor | None) -> dict:
+    # section 6 shares nothing with sections 1-5: started first, in the worker when there is one
+    waves_only_job = _submit(pool, _waves_only_task, out, seed) if pool is not None else None
     step(f"1/6 acquiring on the simulated rig: {spec.name}")
     summary = services.acquire(run, "default", spec, backend="mock", seed=seed, hits=hits, waves=waves)
     rec = summary["recorded"]
@@ -138,21 +236,32 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     step("3/6 identifying: modal only, waves only, combined")
     step("    start: datasheet values, not the simulated truth: "
          + ", ".join(f"{n} {_fmt(n, v)}" for n, v in DATASHEET_START.items()))
-    results: dict[str, services.Identification] = {}
+    jobs: dict[str, Any] = {}
     for ds in DATASETS:
         doc = services.select_data(features, ds)
         if ds != "combined" and not doc.get("modal" if ds == "modal" else "waves"):
-            step(f"    {ds}: no data")
+            jobs[ds] = None
             continue
         start = {n: v for n, v in DATASHEET_START.items() if ds != "waves" or n in WAVES_PARAMS}
-        # the combined result is the report's certificate: with its GUM budget (u_c, U at k = 2)
-        t0, c0 = time.perf_counter(), time.process_time()
-        results[ds] = res = services.run_identification(doc, base_dir=out, src=str(features_path), start=start,
-                                                        budget=ds == "combined")
-        # the step's own wall time (the stage times add up to the total, issue 26): the last
-        # fit's 'seconds' leaves out the global stage, the consistency refits and the budget
-        step(f"    {ds}: {'converged' if res.converged else 'NOT converged'}; step {time.perf_counter() - t0:.1f} s "
-             f"({time.process_time() - c0:.1f} s CPU), of which the final fit {res.estimate['seconds']:.1f} s"
+        if ds == "combined":
+            # the report's certificate, with its GUM budget (u_c, U at k = 2): here, while the
+            # worker (if any) identifies from modal and waves data alone
+            jobs[ds] = _Later(_identify_task, doc, out, str(features_path), start, True)
+        else:
+            jobs[ds] = _submit(pool, _identify_task, doc, out, str(features_path), start, False)
+    combined = jobs["combined"].result()           # here, while the worker runs the other two
+    results: dict[str, services.Identification] = {}
+    for ds in DATASETS:
+        if jobs[ds] is None:
+            step(f"    {ds}: no data")
+            continue
+        done = combined if ds == "combined" else jobs[ds].result()
+        results[ds] = res = done[0]
+        # the step's own time, where it ran (the stage times add up to the total, issue 26): the
+        # last fit's 'seconds' leaves out the global stage, the consistency refits and the budget
+        where = "" if ds == "combined" or pool is None else " in the second process"
+        step(f"    {ds}: {'converged' if res.converged else 'NOT converged'}; step {done[1]:.1f} s "
+             f"({done[2]:.1f} s CPU){where}, of which the final fit {res.estimate['seconds']:.1f} s"
              + (" (the rest: global stage, consistency refits, GUM budget)" if ds == "combined" else
                 " (the rest: global stage, checks)"))
     for ds, res in results.items():
@@ -172,7 +281,12 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
     services.store_result(run, "diagnosis", gap, by="labid demo")
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
     html = write_report(run, out / "report.html")
-    waves_only = _waves_only(out, seed, step, report)
+    if waves_only_job is None:
+        waves_only = _waves_only(out, seed, step, report)
+    else:
+        waves_only, lines = waves_only_job.result()
+        for kind, msg in lines:
+            (step if kind == "step" else report)(msg)
     step(f"done: {run}, {features_path}, {out / 'gap.png'}, {html}, {waves_only['files']['run']}")
 
     errors = {ds: {n: (res.parameters[n]["value"] - truth[n]) / truth[n]
@@ -200,6 +314,9 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated rig")
     p.add_argument("--hits", type=int, default=None, help="hammer hits (default: the rig file's)")
     p.add_argument("--waves", type=int, default=None, help="wave shots (default: the rig file's)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="processes: 2 runs the independent stages in a second one (default: 2 when "
+                        "two cores are available, else 1)")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -209,4 +326,4 @@ def run(args) -> dict:
         # progress goes to stderr when the JSON result goes to stdout
         print(line, file=sys.stderr if args.json == "-" else sys.stdout, flush=True)
 
-    return run_demo(args.out, seed=args.seed, hits=args.hits, waves=args.waves, report=report)
+    return run_demo(args.out, seed=args.seed, hits=args.hits, waves=args.waves, report=report, workers=args.workers)

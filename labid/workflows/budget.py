@@ -15,9 +15,10 @@ Absent keys take :data:`DEFAULTS` (docs/uncertainty.md). With ``mass`` the densi
 an input: it follows from the mass and the dimensions, rho = m / (L W h), so a thickness
 error also moves the density (E ~ h^-3 instead of h^-2 for a thin plate).
 
-:func:`budget_of_problem` finite-differences the forward model of the fitted problem in
-each input (central differences, relative step :data:`REL_STEP`) at the estimate and
-hands the changes to :func:`engine.fit.budget.gum_budget` (dp/dx = -J^+ dr/dx).
+:func:`budget_of_problem` differentiates the forward model of the fitted problem in each
+input at the estimate -- the plate modes analytically (``engine.plate.geometry_sensitivities``),
+the SAFE velocities by central differences (relative step :data:`REL_STEP`) -- and hands the
+changes to :func:`engine.fit.budget.gum_budget` (dp/dx = -J^+ dr/dx).
 Its console table: ``labid.base.summary.budget_text``. Units SI.
 """
 from __future__ import annotations
@@ -29,8 +30,7 @@ import numpy as np
 
 from engine.fit.budget import BudgetInput, gum_budget
 from engine.fit import Estimate
-from engine.forward import pair_by_mac
-from engine.plate import Mesh, PlateModel
+from engine.plate import geometry_sensitivities
 
 from ..base.errors import UserError
 from .identification.estimation import Problem, problem_from_features
@@ -46,10 +46,8 @@ KEYS = {"thickness": "m", "length": "m", "width": "m", "density": "kg/m^3", "mas
 DEFAULTS = {"thickness": (0.01, True), "length": (5e-4, False), "width": (5e-4, False),
             "density": (0.01, True), "sensor_position": (1e-3, False), "source_position": (1e-3, False),
             "path_length": (0.0, False)}
-#: relative step of the central differences (dimensions, density, mass)
+#: relative step of the central differences of the wave velocities (thickness, density, mass)
 REL_STEP = 1e-3
-#: step of the accelerometer position differences, m
-POS_STEP = 1e-3
 
 
 # --------------------------------------------------------------------------- the table
@@ -83,17 +81,13 @@ def uncertainty_table(spec: Specimen, src: str = "<features>") -> dict[str, tupl
 
 
 # --------------------------------------------------------------------------- the inputs
-def _scaled_mesh(mesh: Mesh, length: float, width: float) -> Mesh:
-    """The same elements stretched to ``length`` x ``width`` (no change of element count)."""
-    xe = np.asarray(mesh.xe, float) * (length / mesh.length)
-    ye = np.asarray(mesh.ye, float) * (width / mesh.width)
-    return Mesh(mesh.nx, mesh.ny, length, width, tuple(xe), tuple(ye))
-
-
 def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[str, tuple[float, str]]
                   ) -> tuple[list[BudgetInput], list[str]]:
-    """The type-B inputs of ``problem`` at ``est`` with their residual changes (finite
-    differences of the forward models), and notes on the inputs left out."""
+    """The type-B inputs of ``problem`` at ``est`` with their residual changes, and notes on
+    the inputs left out. Modal rows: analytic eigenvalue sensitivities of the fitted modes
+    (``engine.plate.geometry_sensitivities``: no new solve; they equal the central
+    differences of re-solved models to ~1e-6, tests/unit/engine/test_plate_sensitivity.py).
+    Wave rows: central differences of the SAFE predictions (thickness, density, mass)."""
     spec, feats, mat = problem.specimen, problem.features, problem.material
     notes: list[str] = []
     params0 = est.params
@@ -103,63 +97,52 @@ def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[
     by_mass = "mass" in table
     has_modal = problem.modal_forward is not None
     masses = list(feats.rig.masses()) if (feats is not None and has_modal) else []
-    base_model = problem.modal_forward.model if has_modal else None
-    mesh = base_model.mesh if has_modal else None
     y_obs = np.concatenate([b.observed for b in problem.blocks])
     wave_doc = {k: v for k, v in doc.items() if k != "modal"} if doc.get("waves") else None
-    if has_modal:
-        # the perturbed models' modes follow the fitted ones by MAC on the full shape vectors
-        # (re-pairing with the measured shapes could swap close modes between the two sides
-        # of a difference)
-        fw = problem.modal_forward
-        n_solve = fw.n_solve + 4
-        index0 = fw.solve(dict(params0)).index
-        ref = base_model.solve(n_solve, params=dict(params0), material=mat).shapes[:, index0].T
-
-    plain: list = []    # the mesh's model without masses, built once for the position inputs
-
     n_wave = sum(b.observed.size for b in problem.blocks if b.kind == "waves")
+    rho_moves = by_mass and not fitted_density        # the density follows m / (L W h)
 
-    def predicted(L=L0, W=W0, h=h0, mass_rel=0.0, rho_rel=0.0, shift=(0.0, 0.0)) -> np.ndarray:
+    modal: dict[str, np.ndarray] = {}
+    if has_modal:
+        # d f / d(input) of the fitted modes (raw model frequencies, as a re-solve would give)
+        sol = problem.modal_forward.solve(dict(params0))
+        ok = sol.index >= 0
+        j = np.maximum(sol.index, 0)
+        geo = geometry_sensitivities(problem.modal_forward.model, sol.modes, masses, params=dict(params0),
+                                     material=mat)
+        to_hz = np.where(ok, 1.0 / (8.0 * np.pi ** 2 * sol.modes.frequencies_hz[j]), 0.0)
+        modal = {k: v[j] * to_hz for k, v in geo.items()}
+        if fitted_density:
+            modal["density"] = np.zeros(j.size)
+
+    def waves_at(L=L0, W=W0, h=h0, mass_rel=0.0, rho_rel=0.0) -> np.ndarray:
         lam = spec.laminate.scaled_thickness(h / h0) if h != h0 else spec.laminate
-        sp = Specimen(spec.name, L, W, lam, spec.source)
         par = dict(params0)
         if not fitted_density:
             rho = rho0 * (1.0 + rho_rel)
             if by_mass:
                 rho = rho0 * (L0 * W0 * h0) / (L * W * h) * (1.0 + mass_rel)
             par["density"] = rho
-        model = None
-        if has_modal:
-            if shift != (0.0, 0.0) or L != L0 or W != W0:
-                if L != L0 or W != W0:
-                    model = PlateModel.build(lam, L, W, mesh=_scaled_mesh(mesh, L, W))
-                else:   # the same mesh for the 4 position differences: built once (~0.2 s CPU each)
-                    if not plain:
-                        plain.append(PlateModel.build(lam, L, W, mesh=mesh))
-                    model = plain[0]
-                mm = [(x + shift[0], y + shift[1], w) for x, y, w in masses]
-                if mm:
-                    model = model.with_point_masses(mm)
+        pb = problem_from_features(wave_doc, specimen=Specimen(spec.name, L, W, lam, spec.source), material=mat,
+                                   src=problem.source)
+        return np.concatenate([np.asarray(b.predict(par), float) for b in pb.blocks])
+
+    def central(make, step: float, modal_d: np.ndarray | None) -> np.ndarray:
+        """The residual change per unit input: modal part given, waves by central differences
+        (their length, width and accelerometer differences are exactly 0 unless the density
+        follows the weighed mass)."""
+        parts = [modal_d] if has_modal else []
+        if wave_doc is not None:
+            kw = make(step)
+            if set(kw) <= {"L", "W"} and not rho_moves:
+                parts.append(np.zeros(n_wave))
             else:
-                model = base_model.with_laminate(lam) if h != h0 else base_model
-        parts = []
-        if has_modal:
-            modes = model.solve(n_solve, params=par, material=mat)
-            j, _ = pair_by_mac(ref, modes.shapes.T)
-            parts.append(modes.frequencies_hz[j])
-        if wave_doc is not None and (L != L0 or W != W0 or shift != (0.0, 0.0)) and h == h0 and not (
-                by_mass and not fitted_density):
-            # the SAFE velocities do not depend on the plate's length, width or the accelerometers:
-            # their central difference is exactly 0 (8 of the 13 predictions of the demo's budget)
-            parts.append(np.zeros(n_wave))
-        elif wave_doc is not None:
-            pb = problem_from_features(wave_doc, specimen=sp, material=mat, src=problem.source)
-            parts += [np.asarray(b.predict(par), float) for b in pb.blocks]
+                parts.append((waves_at(**make(step)) - waves_at(**make(-step))) / (2.0 * step))
         return np.concatenate(parts)
 
-    def central(make: Callable[[float], dict], step: float) -> np.ndarray:
-        return (predicted(**make(step)) - predicted(**make(-step))) / (2.0 * step)
+    def rho_term(scale_per_unit: float) -> np.ndarray:
+        """Modal change through the density when it follows the weighed mass."""
+        return modal["density"] * scale_per_unit if (has_modal and rho_moves) else 0.0
 
     inputs: list[BudgetInput] = []
 
@@ -167,20 +150,25 @@ def budget_inputs(problem: Problem, est: Estimate, doc: Mapping, table: Mapping[
         u, source = table[name]
         inputs.append(BudgetInput(name, float(value), float(u), unit, np.asarray(d, float), source))
 
-    add("thickness", h0, "m", central(lambda s: {"h": h0 + s}, REL_STEP * h0))
+    add("thickness", h0, "m", central(lambda s: {"h": h0 + s}, REL_STEP * h0,
+                                      modal.get("thickness", 0.0) / h0 + rho_term(-1.0 / h0) if has_modal else None))
     if has_modal:
-        add("length", L0, "m", central(lambda s: {"L": L0 + s}, REL_STEP * L0))
-        add("width", W0, "m", central(lambda s: {"W": W0 + s}, REL_STEP * W0))
+        add("length", L0, "m", central(lambda s: {"L": L0 + s}, REL_STEP * L0,
+                                       modal["length"] / L0 + rho_term(-1.0 / L0)))
+        add("width", W0, "m", central(lambda s: {"W": W0 + s}, REL_STEP * W0,
+                                      modal["width"] / W0 + rho_term(-1.0 / W0)))
     if fitted_density:
         notes.append("density is identified: its type-B input (density or mass) is not used")
     elif by_mass:
         m0 = spec.mass
-        add("mass", m0, "kg", central(lambda s: {"mass_rel": s / m0}, REL_STEP * m0))
+        add("mass", m0, "kg", central(lambda s: {"mass_rel": s / m0}, REL_STEP * m0,
+                                      modal["density"] / m0 if has_modal else None))
     else:
-        add("density", rho0, "kg/m^3", central(lambda s: {"rho_rel": s / rho0}, REL_STEP * rho0))
+        add("density", rho0, "kg/m^3", central(lambda s: {"rho_rel": s / rho0}, REL_STEP * rho0,
+                                               modal["density"] / rho0 if has_modal else None))
     if masses:
         for axis, name in ((0, "x"), (1, "y")):
-            d = central(lambda s, a=axis: {"shift": (s, 0.0) if a == 0 else (0.0, s)}, POS_STEP)
+            d = np.concatenate([modal[f"masses_{name}"]] + ([np.zeros(n_wave)] if wave_doc is not None else []))
             u, source = table["sensor_position"]
             inputs.append(BudgetInput(f"accelerometer_position_{name}", 0.0, u, "m", d, source))
     wave_rows = np.concatenate([np.full(b.observed.size, b.kind == "waves") for b in problem.blocks])

@@ -1,17 +1,13 @@
-"""`labid demo`: the whole job on the simulated rig, checked against the specimen's truth."""
-import json
-
+"""`labid demo`: the whole job on the simulated rig, checked against the specimen's truth
+(one demo run per test session: the ``demo_output`` fixture of tests/conftest.py)."""
 import pytest
 
-from labid.cli.main import main
 from labid.inputs.specimen import load_specimen
 
 
 @pytest.mark.slow
-def test_demo_end_to_end(tmp_path, capsys):
-    out = tmp_path / "demo"
-    assert main(["demo", "--out", str(out), "--json", "-"]) == 0
-    res = json.loads(capsys.readouterr().out)
+def test_demo_end_to_end(demo_output):
+    out, res = demo_output
     truth = load_specimen("cfrp").laminate.plies[0].material.params()
     assert set(res["identified"]) == {"modal", "waves", "combined"}
     assert all(res["converged"].values())
@@ -33,7 +29,7 @@ def test_demo_end_to_end(tmp_path, capsys):
     # no effect was injected: the diagnosis must not invent one
     assert res["gap"]["verdict"] == "none"
     for key in ("run", "features", "gap_figure", "report"):
-        assert (tmp_path / "demo" / res["files"][key].split("/")[-1]).stat().st_size > 0
+        assert (out / res["files"][key].split("/")[-1]).stat().st_size > 0
     html = (out / "report.html").read_text()
     assert "data:image/png;base64," in html
     assert "Uncertainty budget" in html and "expanded U (k = 2)" in html     # the certificate's GUM budget

@@ -79,3 +79,17 @@ def test_discretisation_memo_returns_the_computed_correction():
     heavier = _model().with_point_masses([(0.05, 0.05, 0.01)])    # another model: not the memo's entry
     r3, _, _ = discretisation(SPEC.laminate, SPEC.length, SPEC.width, [(0.05, 0.05, 0.01)], heavier, MAT, 8)
     assert not np.allclose(r3, r2, rtol=1e-12, atol=0.0)
+
+
+def test_discretisation_memo_serves_fewer_modes_from_the_kept_correction(monkeypatch):
+    """The diagnosis asks for the modes its peaks pair with (fewer than identify solved): it
+    gets the first n of identify's correction, without a second fine-mesh model."""
+    r8, e8, _ = discretisation(SPEC.laminate, SPEC.length, SPEC.width, [], _model(), MAT, 8)
+    again = _model()
+    builds = []
+    monkeypatch.setattr(PlateModel, "build", classmethod(lambda *a, **k: builds.append(a) or None))
+    r5, e5, note = discretisation(SPEC.laminate, SPEC.length, SPEC.width, [], again, MAT, 5)
+    assert not builds
+    np.testing.assert_array_equal(r5, r8[:5])
+    np.testing.assert_array_equal(e5, e8[:5])
+    assert "at mode" in note and int(note.split("at mode ")[1].split(";")[0]) <= 5

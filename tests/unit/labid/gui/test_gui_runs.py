@@ -6,6 +6,7 @@ closing a window with a job running cancels and disconnects the job.
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -16,7 +17,6 @@ from PySide6.QtCore import QEvent  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
 from labid import services  # noqa: E402
-from labid.cli.main import main as cli_main  # noqa: E402
 from labid.gui.main_window import MainWindow  # noqa: E402
 from labid.inputs.rig import read_rig_text  # noqa: E402
 
@@ -182,10 +182,10 @@ def test_closing_the_window_cancels_and_disconnects_its_job(qtbot, partial_runs)
 
 
 @pytest.mark.slow
-def test_the_demo_run_file_opens(qtbot, tmp_path_factory):
+def test_the_demo_run_file_opens(qtbot, tmp_path, demo_output):
     """The run file `labid demo` writes opens with every view filled (issue 17, item 1)."""
-    out = tmp_path_factory.mktemp("demo")
-    assert cli_main(["demo", "--quiet", "--out", str(out)]) == 0
+    out = tmp_path / "demo"
+    shutil.copytree(demo_output[0], out)      # the session's shared demo run, not written into
     for name in ("demo_run.h5", "demo_waves.h5"):
         path = out / name
         rd = services.open_run(path)
