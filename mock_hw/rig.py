@@ -131,6 +131,26 @@ def effective_laminate(lam: Laminate, effects: Effects) -> Laminate:
     return lam
 
 
+def truth_laminate(lam: Laminate, scale: tuple[tuple[str, float], ...]) -> Laminate:
+    """The simulated 'real' plate when it differs from the specimen file (the lab's normal
+    case): its moduli times ``scale`` (the rig's ``[simulation] truth_scale``: ('*', f)
+    every modulus, or (name, f) pairs; E3 follows E2 when the file leaves it out)."""
+    if not scale:
+        return lam
+    for name, mat in lam.materials.items():
+        cur = {"E": mat.E1, "G": mat.G12} if mat.isotropic else \
+            {"E1": mat.E1, "E2": mat.E2, "G12": mat.G12, "G13": mat.G13, "G23": mat.G23}
+        if not mat.isotropic and mat.E3 is not None:
+            cur["E3"] = mat.E3
+        new = dict(cur)
+        for key, f in scale:
+            for k in (cur if key == "*" else [key]):
+                if k in cur:
+                    new[k] = cur[k] * f
+        lam = lam.with_params(new, material=name)
+    return lam
+
+
 # -- cached engine results ---------------------------------------------------
 def _butter_or_bessel(kind: str, order: int, cutoff_hz: float, fs_hz: float):
     if kind == "none":
@@ -229,7 +249,8 @@ class SimulatedDevice:
 
     def _template(self) -> _Template:
         channels, timing, trigger = self._cfg
-        return _cached_template(self.rig, self.specimen, self.role, self.effects, channels, timing)
+        return _cached_template(self.rig, self.specimen, self.role, self.effects, channels, timing,
+                                waves.model_token())
 
     def _synthesise(self, rng: np.random.Generator, k: int) -> Record:
         channels, timing, trigger = self._cfg
@@ -306,19 +327,24 @@ class SimulatedDevice:
             "sim_double_hit_delay_s": delay / tpl.fs_fine if dbl else 0.0,
             "sim_onset_s": onset_s, "effects": self.effects.active(),
         }
+        if self.rig.sim.truth_scale:
+            meta["sim_truth_scale"] = {k: f for k, f in self.rig.sim.truth_scale}
+        if waves.model_token() != "engine.safe":
+            meta["sim_wave_model"] = waves.model_token()
         return Record(data=data, channels=tuple(channels), timing=timing, trigger=trigger,
                       overload=over, timestamp=time.time(), backend="mock", meta=meta)
 
 
 @functools.lru_cache(maxsize=16)
-def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple, timing: Timing) -> _Template:
+def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple, timing: Timing,
+                     model: str = "engine.safe") -> _Template:
     spec = rig.device(role)
     fs = timing.rate_hz
     fsf = OVERSAMPLE * fs
     lead = OVERSAMPLE * (timing.pretrigger + 16)
     nf = lead + OVERSAMPLE * (2 * timing.samples + 16)
     t = (np.arange(nf) - lead) / fsf
-    lam = effective_laminate(specimen.laminate, effects)
+    lam = effective_laminate(truth_laminate(specimen.laminate, rig.sim.truth_scale), effects)
     raw: dict[str, np.ndarray] = {}
     if role == "hammer":
         raw = vibration_signals(rig, specimen, lam, effects, channels, t)

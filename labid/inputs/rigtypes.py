@@ -136,6 +136,9 @@ class SimSettings:
     miss_probability: float = 0.0
     wave_fmax_hz: float = 400.0e3
     reflections: int = 1          # edge reflections of the wave shots: image-source order 0, 1 or 2
+    # the simulated plate's moduli are the specimen file's times these factors: (('*', f),) scales
+    # every modulus (E1, E2, E3, G12, G13, G23; E, G), (('G13', f), ...) named ones; () none
+    truth_scale: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
