@@ -29,7 +29,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -237,6 +237,9 @@ class SimulatedDevice:
         k = self.shot_index
         self.shot_index += 1
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, ROLE_IDS[self.role], k]))
+        src = self.rig.wave_source
+        if self.role == "wave" and src is not None and src.burst is not None and src.burst.sweep_hz:
+            self._tpl = self._template(k)          # the sweep's turn (cached per frequency)
         return self._synthesise(rng, k)
 
     def close(self) -> None:
@@ -247,10 +250,19 @@ class SimulatedDevice:
     def source(self):
         return self.rig.hammer if self.role == "hammer" else self.rig.wave_source
 
-    def _template(self) -> _Template:
+    def _template(self, shot: int = 0) -> _Template:
         channels, timing, trigger = self._cfg
-        return _cached_template(self.rig, self.specimen, self.role, self.effects, channels, timing,
+        return _cached_template(self.shot_rig(shot), self.specimen, self.role, self.effects, channels, timing,
                                 waves.model_token())
+
+    def shot_rig(self, shot: int):
+        """The rig of wave shot ``shot``: with a tone-burst sweep, the burst at its turn's
+        centre frequency (shot k: the (k mod n)-th of the sweep)."""
+        src = self.rig.wave_source
+        if self.role != "wave" or src is None or src.burst is None or not src.burst.sweep_hz:
+            return self.rig
+        f = src.burst.sweep_hz[shot % len(src.burst.sweep_hz)]
+        return replace(self.rig, wave_source=replace(src, burst=src.burst.at(f)))
 
     def _synthesise(self, rng: np.random.Generator, k: int) -> Record:
         channels, timing, trigger = self._cfg
@@ -327,6 +339,8 @@ class SimulatedDevice:
             "sim_double_hit_delay_s": delay / tpl.fs_fine if dbl else 0.0,
             "sim_onset_s": onset_s, "effects": self.effects.active(),
         }
+        if self.role == "wave" and src.burst is not None and src.burst.sweep_hz:
+            meta["burst_frequency_hz"] = src.burst.sweep_hz[k % len(src.burst.sweep_hz)]
         if self.rig.sim.truth_scale:
             meta["sim_truth_scale"] = {k: f for k, f in self.rig.sim.truth_scale}
         if waves.model_token() != "engine.safe":

@@ -246,10 +246,11 @@ class Branches:
         ``w_target`` (NaN outside the range it covers): k by cubic Hermite inversion of
         w_j(k) with dk/dw = 1 / c_g at the nodes, the rest by Hermite/linear interpolation in k."""
         wj, cj, kk = self.w[j], self.cg[j], self.k
-        ok = np.concatenate([[True], np.diff(wj) > 0])
-        # keep the monotonic run from the start (a backward-wave turn ends the branch here)
-        stop = int(np.argmin(ok)) if not ok.all() else wj.size
-        wj, cj, kk = wj[:stop], cj[:stop], kk[:stop]
+        # the monotonic run at the top of the grid (round-off makes the lowest k of A0 noisy;
+        # a backward-wave turn would end the branch)
+        bad = np.flatnonzero(np.diff(wj) <= 0)
+        start = int(bad[-1]) + 1 if bad.size else 0
+        wj, cj, kk = wj[start:], cj[start:], kk[start:]
         wt = np.asarray(w_target, float)
         i = np.clip(np.searchsorted(wj, wt) - 1, 0, wj.size - 2)
         inside = (wt >= wj[0]) & (wt <= wj[-1])
@@ -260,14 +261,14 @@ class Branches:
         k = h00 * kk[i] + h10 * h / cj[i] + h01 * kk[i + 1] + h11 * h / cj[i + 1]
         tk = (k - kk[i]) / (kk[i + 1] - kk[i])
         cg = cj[i] + tk * (cj[i + 1] - cj[i])
-        prod = {key: v[j, :stop][i] + tk * (v[j, :stop][i + 1] - v[j, :stop][i]) for key, v in self.prod.items()}
+        prod = {key: v[j, start:][i] + tk * (v[j, start:][i + 1] - v[j, start:][i]) for key, v in self.prod.items()}
         nan = np.where(inside, 1.0, np.nan)
         return k * nan, cg * nan, {key: v * nan for key, v in prod.items()}
 
 
 def branches(plate: LegendrePlate, fmax_hz: float, n_branches: int = 3, n_k: int = 600) -> Branches:
     """The lowest ``n_branches`` of ``plate`` up to (beyond) ``fmax_hz`` on ``n_k`` geometric
-    wavenumbers from 2e-3 k_A0(fmax) to 1.05 k_A0(fmax) (eigh of the Hermitian pencil at each k)."""
+    wavenumbers from 5e-3 k_A0(fmax) to 1.05 k_A0(fmax) (eigh of the Hermitian pencil at each k)."""
     w_max = 2 * math.pi * fmax_hz
     # k of the slowest branch at fmax: bisection on w_0(k)
     lo, hi = 1e-3, 1.0
@@ -277,7 +278,7 @@ def branches(plate: LegendrePlate, fmax_hz: float, n_branches: int = 3, n_k: int
         mid = math.sqrt(lo * hi)
         lo, hi = (mid, hi) if plate.frequencies(mid, 1)[0][0] < w_max else (lo, mid)
     kmax = 1.05 * hi
-    k = np.geomspace(kmax * 2e-3, kmax, n_k)
+    k = np.geomspace(kmax * 5e-3, kmax, n_k)
     nb = n_branches
     W, CG = np.zeros((nb, n_k)), np.zeros((nb, n_k))
     keys = [(r, s) for r in plate.probe for s in plate.probe]

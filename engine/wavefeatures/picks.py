@@ -159,6 +159,8 @@ class Direction:
     margin: dict = field(default_factory=dict)   # mode -> relative velocity uncertainty
     packets: dict = field(default_factory=dict)  # (channel, wavelet) -> [Packet]
     nominal_cg: dict = field(default_factory=dict)  # mode -> direct-path nominal c_g
+    prior_scale: dict = field(default_factory=dict)   # mode -> ratio found by the survey (stage 0)
+    prior_margin: dict = field(default_factory=dict)  # mode -> its relative uncertainty
     strict: bool = True        # stage 1 (False): overlaps are not dropped, the picks only rescale
     record_s: float = 0.0      # how long after the earliest onset the records reach (s)
 
@@ -312,6 +314,10 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         if peaks.size:
             peaks = peaks[A[i, peaks] >= 0.05 * A[i, peaks].max()]
         best = None
+        def weak(p, i):
+            return (np.isfinite(p.amplitude[i]) and np.isfinite(target.amplitude[i])
+                    and p.amplitude[i] < 0.05 * target.amplitude[i])
+
         def z(lo_p, hi_p, sp, tc):
             """Distance of tc from a packet's nominal place, in its own uncertainty (the
             half-width of where it may lie plus its width)."""
@@ -323,6 +329,11 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
             mine = True
             for p in pk:
                 if p is target or not np.isfinite(p.delay_s[i]):
+                    continue
+                # a packet predicted much weaker than the target cannot be a peak as strong
+                # (a mode the records did not show, with a wide velocity range, would
+                # otherwise claim every peak inside that range)
+                if weak(p, i):
                     continue
                 p_lo, p_hi = rng(p, i)
                 if z(p_lo, p_hi, p.spread_s[i], tc) < z_t:
@@ -422,7 +433,9 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
             g = groups.setdefault(key, [0.0, 0.0, label])
             g[0] += rho
             g[1] += b
-        level = sum(g[0] for g in groups.values())
+        # the level guards the first-order shift bound: like the shift, the groups' levels add
+        # in rms (a coherent sum of every edge's echo at one instant is not a record)
+        level = math.sqrt(sum(g[0] ** 2 for g in groups.values()))
         shift = math.sqrt(sum(g[1] ** 2 for g in groups.values()) / 2.0)
         travel = path_m * target.delay_s[i] / target.length_m
         if d.strict and (level > leak_max or shift > d.settings.max_bias * travel):

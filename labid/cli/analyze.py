@@ -86,6 +86,8 @@ def run(args) -> dict:
             dropped = ", ".join(f"{k} x{n}" for k, n in sorted(x.get("dropped", {}).items(), key=lambda t: -t[1]))
             w.write(f"{x['mode']} {x['direction_deg']:g} deg: {len(f)} velocities, "
                     f"{f[0] / 1e3:.3g}-{f[-1] / 1e3:.3g} kHz" + (f"; dropped: {dropped}" if dropped else "") + "\n")
+        for mm in feats.get("analysis", {}).get("nominal_mismatch", []):
+            w.write("warning: " + mm["message"] + "\n")
         for note in feats.get("analysis", {}).get("notes", []):
             if note.startswith("no velocity") or "not reported" in note:
                 w.write("dropped: " + note + "\n")

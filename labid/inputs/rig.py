@@ -232,10 +232,20 @@ _SOURCE_KEYS = {
 
 def _burst(tab: Mapping, where: str, src: str, amplitude_key: str, amplitude_what: str) -> Burst:
     """The burst keys of a tone_burst source or a pzt's excitation table."""
+    f = tab.get("frequency_hz")
+    sweep: tuple[float, ...] = ()
+    if isinstance(f, list):          # a sweep of centre frequencies
+        if not f or len(f) > 64:
+            raise _err(src, where + "frequency_hz", f"value {f!r}: expected a centre frequency in Hz or a "
+                       "list of 1 to 64 of them (a sweep)")
+        sweep = tuple(_num({"frequency_hz": x}, "frequency_hz", where, src, lo=0.0, lo_open=True,
+                           what="a centre frequency in Hz") for x in f)
+        tab = {**tab, "frequency_hz": sweep[0]}
     b = Burst(_num(tab, "frequency_hz", where, src, lo=0.0, lo_open=True, what="a centre frequency in Hz"),
               _num(tab, "cycles", where, src, default=5.0, lo=0.5, hi=1000.0, what="a number of cycles"),
               _str(tab, "window", where, src, choices=WINDOWS, default="hann"),
-              _num(tab, amplitude_key, where, src, default=1.0, lo=0.0, lo_open=True, what=amplitude_what))
+              _num(tab, amplitude_key, where, src, default=1.0, lo=0.0, lo_open=True, what=amplitude_what),
+              sweep if len(sweep) > 1 else ())
     return b
 
 
