@@ -93,6 +93,11 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
               f"{f.min() / 1e3:.0f}-{f.max() / 1e3:.0f} kHz; error vs the true plate "
               f"{100 * e.min():+.2f} .. {100 * e.max():+.2f} %, sigma {100 * (s / ref).min():.2f} .. "
               f"{100 * (s / ref).max():.2f} %, max |err|/sigma {z.max():.1f}")
+        bad = np.abs(e) > 0.01
+        if bad.any():
+            print("    points off by more than 1 %: " + ", ".join(
+                f"{fi / 1e3:.0f} kHz {100 * ei:+.1f} % (sigma {100 * si:.2f} %)"
+                for fi, ei, si in zip(f[bad], e[bad], (s / ref)[bad])))
     reported = {(w["mode"], w["direction_deg"]) for w in feats}
     for key, d in info.get("dropped", {}).items():
         m, dd = key.split("_")
@@ -112,8 +117,8 @@ def main(argv) -> None:
                           "bench/rigs/cfrp_pzt_sweep_2dir.toml")
     cases = {
         "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
-        "two_dir": lambda sc, m: run_case("0.6 m CFRP plate (pencil at the centre, MFCs 6 / 20 cm along 0 and 90 deg)", two_dir, large, 3, sc, m),
-        "sweep": lambda sc, m: run_case("0.6 m CFRP plate (PZT bursts 60-250 kHz, 2 shots each, MFCs 6 / 20 cm along 0 / 90 deg)",
+        "two_dir": lambda sc, m: run_case("1 m CFRP plate (pencil at the centre, MFCs 10 / 25 cm along 0 and 90 deg)", two_dir, large, 3, sc, m),
+        "sweep": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz, 2 shots each, MFCs 10 / 25 cm along 0 / 90 deg)",
                                         sweep, large, 10, sc, m),
     }
     pick = [a for a in argv if a in cases] or list(cases)

@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import waves
 
-__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs"]
+__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "off_curve"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
 
@@ -85,13 +85,14 @@ def independent_mask(freqs_hz, valid, which: Sequence, spacing: float = SPACING)
     return keep
 
 
-def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_tol: float = 0.0
+def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_tol: float = 0.01
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One dispersion curve from the independent points of several runs (e.g. tone bursts at
     different centre frequencies): ``curves`` are (frequency, velocity, sigma) arrays. Points
     of different runs at the same frequency (within ``rel_tol``) are averaged with inverse-
     variance weights, their sigma being the larger of the propagated one and half their
     spread (two runs that disagree say so); the others are kept with their own sigma.
+    Points off the smooth curve through the others (``off_curve``) are left out.
     Returns (frequency, velocity, sigma, number of runs behind each point), by frequency."""
     pts = sorted((float(f), float(v), float(s)) for F, V, S in curves for f, v, s in zip(F, V, S)
                  if np.isfinite(v) and np.isfinite(s) and s > 0)
@@ -113,4 +114,33 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
         out_s.append(s)
         out_n.append(len(grp))
         i = j
-    return np.array(out_f), np.array(out_v), np.array(out_s), np.array(out_n, int)
+    F, V, S, N = np.array(out_f), np.array(out_v), np.array(out_s), np.array(out_n, int)
+    bad = off_curve(F, V, S)
+    return F[~bad], V[~bad], S[~bad], N[~bad]
+
+
+def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0) -> np.ndarray:
+    """Mask of points inconsistent with the smooth curve through the others: a group-velocity
+    curve below the first cut-off is smooth in ln f, so a polynomial of ``degree`` in ln f is
+    fitted (weights 1/sigma, iteratively leaving out the worst point) and a point farther
+    than ``k`` x max(its sigma, the robust scatter of the residuals) is flagged (a pick on the
+    wrong lobe of a packet split by a spectral notch, or on a residual echo). Fewer than
+    degree + 4 points: nothing is flagged."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    bad = np.zeros(f.size, bool)
+    if f.size < degree + 4:
+        return bad
+    x = np.log(f / f.max())
+    for _ in range(f.size // 4 + 1):
+        keep = ~bad
+        w = 1.0 / np.maximum(s[keep], 1e-3 * np.abs(v[keep]))
+        c = np.polynomial.polynomial.polyfit(x[keep], v[keep], degree, w=w)
+        res = v - np.polynomial.polynomial.polyval(x, c)
+        mad = 1.4826 * float(np.median(np.abs(res[keep])))
+        z = np.abs(res) / (k * np.maximum(s, mad))
+        z[bad] = 0.0
+        j = int(np.argmax(z))
+        if z[j] <= 1.0 or keep.sum() <= degree + 3:
+            break
+        bad[j] = True
+    return bad

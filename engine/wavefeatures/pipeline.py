@@ -450,6 +450,10 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             # the features carry only points a wavelet resolution apart: neighbours on the
             # dense grid share their errors (the full curve stays in the run file)
             ok = merge.independent_mask(freqs, ok, which[mode])
+            bad = merge.off_curve(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok])
+            if bad.any():
+                counts[mode]["off the smooth curve"] = int(bad.sum())
+                ok[np.flatnonzero(ok)[bad]] = False
             out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
                                  dict(counts[mode])))
             how = "source to sensor" if far is not None and near is None and setup.force_channel is not None \

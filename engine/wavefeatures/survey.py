@@ -49,6 +49,7 @@ SCALE_RANGE = (0.6, 1.6)      # measured / nominal velocity ratios searched (mod
 TAU = 0.03                    # log-velocity tolerance of the scale match
 N_SUB = 28                    # coarse analysis frequencies
 SURVEY_WAVELET = waves.Wavelet(2.0, 1.0)
+INCONSISTENT = 0.25           # weight of a maximum the nearer sensors do not confirm (source recorded)
 
 
 @dataclass(frozen=True)
@@ -118,11 +119,18 @@ def _onset_votes(d: Direction, peaks: dict, freqs, c_src, grid: np.ndarray, widt
     sensor, farthest sensor) of one frequency implies a velocity and an onset; per frequency
     the best pair within ``width`` of the onset counts (amplitude relative to that frequency's
     strongest pair), so an onset supported across the band outvotes one strong echo pair."""
-    near, far = d.sensors[0], d.sensors[-1]
+    votes = np.zeros(grid.size)
+    for fam in "AS":                  # per mode family's records (a top/bottom pair: sum and difference)
+        ss = [s for s in d.sensors if fam in s.families]
+        if len(ss) >= 2 and ss[-1].distance_m > ss[0].distance_m:
+            votes += _pair_votes(ss[0], ss[-1], peaks, freqs, c_src, grid, width)
+    return votes
+
+
+def _pair_votes(near, far, peaks: dict, freqs, c_src, grid: np.ndarray, width: float) -> np.ndarray:
+    """``_onset_votes`` of one (nearer, farther) sensor pair."""
     dr = far.distance_m - near.distance_m
     votes = np.zeros(grid.size)
-    if not dr > 0:
-        return votes
     dn, dff = sensor_delay(near, freqs), sensor_delay(far, freqs)
     for i in range(freqs.size):
         t0s, ws = [], []
@@ -146,7 +154,7 @@ def survey_onsets(dirs: Sequence[Direction], shots: Sequence[Mapping[str, np.nda
     is triggered on a sensor and the source is not recorded, from every direction with two
     sensors at different distances (their votes add up: one source, one onset), and the onset
     range they span (plus the resolution); None when no direction can say."""
-    usable = [d for d in dirs if len({s.distance_m for s in d.sensors}) >= 2]
+    usable = [d for d in dirs if any(len({s.distance_m for s in d.sensors if f in s.families}) >= 2 for f in "AS")]
     if not usable or usable[0].setup.trigger_distance_m is None or usable[0].setup.force_channel is not None:
         return None
     setup = usable[0].setup
@@ -180,11 +188,16 @@ def survey_onsets(dirs: Sequence[Direction], shots: Sequence[Mapping[str, np.nda
     return tuple(onsets), (mid - half, mid + half)
 
 
-def _candidates(d: Direction, peaks: dict, freqs, wl, t_ref: np.ndarray, tol_s: np.ndarray):
+def _candidates(d: Direction, peaks: dict, freqs, wl, t_ref: np.ndarray, tol_s: np.ndarray,
+                known_time: bool = False, family: str = "A"):
     """Per frequency [(velocity, weight), ...] of the maxima that move out at one speed: with
     several sensors, apparent velocities r / (t - t_ref) matching at every sensor (times within
-    ``tol_s``), weighted by the geometric mean amplitude; with one sensor, all of its maxima."""
-    ss = d.sensors
+    ``tol_s``), weighted by the geometric mean amplitude; with one sensor, all of its maxima;
+    with the source time measured (``known_time``) the unconfirmed maxima of the farthest sensor
+    too, with ``INCONSISTENT`` of their weight."""
+    ss = [s for s in d.sensors if family in s.families]      # the records holding that family
+    if not ss:
+        return [[] for _ in range(freqs.size)]
     out = []
     for i in range(freqs.size):
         if not np.isfinite(t_ref[i]):
@@ -208,24 +221,32 @@ def _candidates(d: Direction, peaks: dict, freqs, wl, t_ref: np.ndarray, tol_s: 
                 wsum += math.log(best[2])
             if ok:
                 row.append((v, math.exp(wsum / len(ss))))
+            elif known_time:
+                # the source time is measured: a far-sensor maximum stands on its own, but one the
+                # nearer sensors do not confirm weighs less (near the source the modes of a burst
+                # overlap in time and no separate maximum confirms them)
+                row.append((v, INCONSISTENT * a))
         out.append(row)
     return out
 
 
-def _scale_search(cands, nom: np.ndarray, upper: np.ndarray | None) -> tuple[float, float, np.ndarray] | None:
+def _scale_search(cands, nom: np.ndarray, upper: np.ndarray | None, expected: np.ndarray
+                  ) -> tuple[float, float, np.ndarray] | None:
     """(scale, score, per-frequency matched velocity or NaN) of the fastest strong scale of
-    the nominal curve ``nom`` through the candidates, below ``upper`` (a faster mode's curve)."""
+    the nominal curve ``nom`` through the candidates, below ``upper`` (a faster mode's curve).
+    A candidate weighs its amplitude relative to the strongest of its frequency over the
+    level ``expected`` of this mode there (relative to the strongest mode, nominal model),
+    capped at 1: a weak mode's packet counts as fully as a strong mode's."""
     grid = np.geomspace(*SCALE_RANGE, 400)
     nf = len(cands)
-    wmax = max((w for row in cands for _, w in row), default=0.0)
-    if wmax <= 0:
-        return None
     score = np.zeros(grid.size)
     for i in range(nf):
         if not np.isfinite(nom[i]) or not cands[i]:
             continue
         v = np.array([c[0] for c in cands[i]])
-        w = np.array([c[1] for c in cands[i]]) / wmax
+        w = np.array([c[1] for c in cands[i]])
+        exp_i = expected[i] if np.isfinite(expected[i]) and expected[i] > 0 else 1.0
+        w = np.minimum(w / w.max() / max(exp_i, 1e-3), 1.0)
         keep = np.ones(v.size, bool) if upper is None or not np.isfinite(upper[i]) else v < upper[i] * 0.97
         if not keep.any():
             continue
@@ -251,6 +272,45 @@ def _scale_search(cands, nom: np.ndarray, upper: np.ndarray | None) -> tuple[flo
         if z[k] <= 2.5 * TAU and (upper is None or not np.isfinite(upper[i]) or v[k] < upper[i] * 0.97):
             matched[i] = v[k]
     return s, float(score[j]), matched
+
+
+def _track(cands, nom: np.ndarray, s: float, freqs: np.ndarray, upper: np.ndarray | None, n_iter: int = 4):
+    """Follow the ridge the scale search found: the measured / nominal ratio as a line in
+    ln f, started at the constant ``s``; each pass takes per frequency the candidate nearest
+    the current line (within 2.5 TAU, below ``upper``), refits, and leaves out points more
+    than 3 robust stds (at least 1 %) off the line (a spectral notch of the source splits a
+    packet in two lobes, neither of which is the group delay). Returns (coefficients in
+    ln(f / f_max), mask of the points kept, their ratios, robust std) or None (< 3 points)."""
+    x = np.log(freqs / freqs.max())
+    c = np.array([s])
+    ok, r, spread = None, None, 0.0
+    for _ in range(n_iter):
+        center = nom * np.polynomial.polynomial.polyval(x, c)
+        matched = np.full(freqs.size, np.nan)
+        for i in range(freqs.size):
+            if not np.isfinite(nom[i]) or not cands[i]:
+                continue
+            v = np.array([cc[0] for cc in cands[i]])
+            z = np.abs(np.log(v / center[i]))
+            k = int(np.argmin(z))
+            if z[k] <= 2.5 * TAU and (upper is None or not np.isfinite(upper[i]) or v[k] < upper[i] * 0.97):
+                matched[i] = v[k]
+        ok = np.isfinite(matched)
+        if ok.sum() < 3:
+            return None
+        ratio = matched / nom
+        keep = ok.copy()
+        for _ in range(3):
+            deg = 1 if keep.sum() >= 8 else 0
+            c = np.polynomial.polynomial.polyfit(x[keep], ratio[keep], deg)
+            res = ratio - np.polynomial.polynomial.polyval(x, c)
+            spread = 1.4826 * float(np.median(np.abs(res[keep] - np.median(res[keep]))))
+            new = ok & (np.abs(res) <= max(3 * spread, 0.01 * np.median(ratio[ok])))
+            if new.sum() < 3 or np.array_equal(new, keep):
+                break
+            keep = new
+        ok, r = keep, ratio[keep]
+    return c, ok, r, spread
 
 
 def _direct_levels(d: Direction, freqs, wl) -> dict:
@@ -309,13 +369,15 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
         how = "the trigger time"
     peaks = {ch: _maxima(a, t, t_min, floors[ch]) for ch, a in A.items()}
     tol = 0.6 * tstd + 2.0 / fs
-    cands = _candidates(d, peaks, freqs, wl, t_ref, tol)
+    cands = {fm: _candidates(d, peaks, freqs, wl, t_ref, tol, known_time=setup.force_channel is not None,
+                             family=fm) for fm in "AS"}
     nominal = {m: nominal_cg(d, m)[idx] for m in modes}
     nominal = {m: v for m, v in nominal.items() if np.isfinite(v).sum() >= 3}
     # a mode the source hardly excites (or the sensor hardly sees: SH0 under a normal force or
     # a disc, along a symmetry axis) is not searched: its curve would claim another's packets
     level = _direct_levels(d, freqs, wl)
     top = max((np.nanmax(v) for v in level.values()), default=0.0)
+    strongest = np.nanmax(np.array(list(level.values())), axis=0) if level else np.ones(freqs.size)
     nominal = {m: v for m, v in nominal.items() if m in level and np.nanmax(level[m]) >= 0.05 * top}
     fam = set("".join(s.families for s in d.sensors))
     scale, margin, ratio, band, mismatch = {}, {}, {}, {}, {}
@@ -323,25 +385,23 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
     for m in sorted(nominal, key=lambda m: -np.nanmedian(nominal[m])):      # fastest first
         if ("A" if m.startswith("A") else "S") not in fam:
             continue
-        res = _scale_search(cands, nominal[m], upper)
+        res = _scale_search(cands["A" if m.startswith("A") else "S"], nominal[m], upper,
+                            level[m] / np.maximum(strongest, 1e-300))
         if res is None:
             continue
         s, sc, matched = res
-        ok = np.isfinite(matched)
-        if ok.sum() < 3:
+        track = _track(cands["A" if m.startswith("A") else "S"], nominal[m], s, freqs, upper)
+        if track is None:
             continue
-        r = matched[ok] / nominal[m][ok]
+        c, ok, r, spread = track
         f_ok = freqs[ok]
-        deg = 1 if ok.sum() >= 8 else 0
-        c = np.polynomial.polynomial.polyfit(f_ok / freqs_all.max(), r, deg)
-        fit = np.polynomial.polynomial.polyval(freqs_all / freqs_all.max(), c)
-        resid = r - np.polynomial.polynomial.polyval(f_ok / freqs_all.max(), c)
-        spread = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
+        x_all = np.log(freqs_all / freqs_all.max())
+        fit = np.polynomial.polynomial.polyval(x_all, c)
         scale[m] = fit
         margin[m] = float(min(max(4 * spread, 0.02), 0.06))
         ratio[m] = float(np.median(r))
         band[m] = (float(f_ok.min()), float(f_ok.max()))
-        cur = nominal[m] * np.polynomial.polynomial.polyval(freqs / freqs_all.max(), c)
+        cur = nominal[m] * np.polynomial.polynomial.polyval(np.log(freqs / freqs_all.max()), c)
         upper = cur if upper is None else np.fmin(upper, cur)
         notes.append(f"direction {d.direction:g} deg: {m} found in the records at {ok.sum()} of {freqs.size} "
                      f"surveyed frequencies ({band[m][0] / 1e3:.3g}-{band[m][1] / 1e3:.3g} kHz), "
