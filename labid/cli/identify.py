@@ -114,7 +114,9 @@ def _identify(args: argparse.Namespace, client) -> dict:
 def _print(out: dict, names) -> None:
     w = sys.stdout.write
     fit = out["fit"]
-    if not fit["consistent"] and fit.get("unexplained_peaks"):
+    if fit.get("verdict") == "insufficient_data":     # issue 24: the data cannot hold these constants
+        w("INSUFFICIENT DATA: " + fit["insufficient_data"]["message"].split(": ", 1)[-1] + "\n")
+    elif not fit["consistent"] and fit.get("unexplained_peaks"):
         w(f"INCONSISTENT FIT: {fit['unexplained_peaks']} of {len(out.get('pairing') or [])} peaks match no "
           "predicted mode: the constants below are NOT identified (labid diagnose looks for the cause)\n")
     elif not fit["consistent"]:
@@ -140,7 +142,8 @@ def _print(out: dict, names) -> None:
     r = out["residual"]
     w("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None) + "\n")
     for msg in out["warnings"]:
-        w(f"  note: {msg}\n")
+        if msg != fit.get("insufficient_data", {}).get("message"):      # said above
+            w(f"  note: {msg}\n")
     if "posterior" in out:
         ps = out["posterior"]
         w(f"  MCMC posterior ({ps['n_samples']} samples, acceptance {ps['acceptance']:.2f}): "
