@@ -286,6 +286,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         return _rejected(freqs, wl, reason)
     A = np.abs(W)
     t = (np.arange(A.shape[1]) - pre) / fs
+    src_spread = source_signature(d.setup.source, freqs, wl)[1]
 
     ranges = {}
     for p in pk:     # where each packet may lie on the record axis: (earliest, latest) per frequency
@@ -347,7 +348,12 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         # the wavelet must not straddle the source time: a pick within one of its time stds of
         # the onset mixes the source's own transient (a lead break's step, a burst's crosstalk)
         # into the packet (measured: 1-2 % at the low end of a pencil's band, 6 cm from it)
-        if t[best] - hi_s[i] < float(wl.time_std_s(freqs[i])):
+        guard = float(wl.time_std_s(freqs[i]))
+        if d.setup.source.electrical and src_arr is None:
+            # an electrical source whose record is missing: its crosstalk lasts as long as the
+            # excitation and cannot be measured here, so the packet must come after it
+            guard += 2.0 * float(src_spread[i])
+        if t[best] - hi_s[i] < guard:
             reason[i] = "within a wavelet length of the source time"
             continue
         gate_lo[i], gate_hi[i] = t[best] - 0.75 * sig, t[best] + 0.75 * sig
