@@ -143,10 +143,10 @@ def truth_laminate(lam: Laminate, scale: tuple[tuple[str, float], ...]) -> Lamin
         if not mat.isotropic and mat.E3 is not None:
             cur["E3"] = mat.E3
         new = dict(cur)
-        for key, f in scale:
+        for key, f in scale:                    # factors compose: ('*', 0.5), ('G13', 2) leaves G13
             for k in (cur if key == "*" else [key]):
-                if k in cur:
-                    new[k] = cur[k] * f
+                if k in new:
+                    new[k] = new[k] * f
         lam = lam.with_params(new, material=name)
     return lam
 

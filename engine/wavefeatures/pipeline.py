@@ -56,7 +56,7 @@ from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_
 from . import merge
 from .survey import survey_direction, survey_onsets
 
-__all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet",
+__all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet", "stack_shots",
            "analysis_band", "echo_path", "noise_rms", "combine_shots", "measure_waves", "sensor_delay",
            "signal_band", "snr_band"]
 
@@ -351,6 +351,25 @@ def _sweep_term(d: Direction, wl: waves.Wavelet, shots, combined: dict) -> dict:
     return out
 
 
+MAX_CURVES = 12     # shots beyond this are averaged in groups (bench/RESULTS.md, issue 24: cost)
+
+
+def stack_shots(shots: Sequence[Mapping[str, np.ndarray]], max_curves: int = MAX_CURVES):
+    """At most ``max_curves`` records per channel: consecutive shots averaged in equal groups
+    (aligned on their trigger, as recorded) when there are more. The curves are then measured
+    per group; their scatter over the groups gives the sigma, as over shots (the group means
+    are independent), and the noise of each falls as 1 / sqrt(group size). Returns the records
+    and a note ('' when nothing was averaged)."""
+    n = len(shots)
+    if n <= max_curves:
+        return list(shots), ""
+    edges = np.linspace(0, n, max_curves + 1).round().astype(int)
+    out = [{ch: np.mean([shots[k][ch] for k in range(a, b)], axis=0) for ch in shots[a]}
+           for a, b in zip(edges[:-1], edges[1:])]
+    return out, (f"{n} wave shots averaged in {max_curves} groups of {n // max_curves}-{-(-n // max_curves)} "
+                 "(aligned on their trigger); curves and their scatter from the groups")
+
+
 def _pairs(sensors: Sequence[Sensor], shots) -> tuple[list[Sensor], list[dict], list[str]]:
     """Top/bottom sensor pairs at one position become their sum (S modes) and difference
     (A modes) records."""
@@ -385,6 +404,9 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
     ``setup`` and the source channel); ``freqs``: the analysis grid (``analysis_band``).
     """
     notes: list[str] = []
+    shots, stack_note = stack_shots(shots)
+    if stack_note:
+        notes.append(stack_note)
     sensors, shots, pair_notes = _pairs(setup.sensors, shots)
     notes += pair_notes
     fam = setup.source.families

@@ -11,7 +11,8 @@ predicted shapes and the echoes of other directions are still off. So:
    velocity change in units of the point's sigma;
 4. stop when no point is added or lost and none moves by more than ``tol_sigma`` of its
    sigma, or after ``max_iter`` rounds, or when the identification cannot determine the
-   constants (insufficient data): the picks then stay the last ones.
+   constants (insufficient data, or no constant with a relative std below ``MAX_REL_STD``):
+   the picks then stay the last ones. Only determined constants replace the nominal ones.
 
 Each round is recorded in the features' ``analysis.iterations`` (CONTRACT section 2, an
 optional key): the constants used, the points per curve, what changed. The features keep
@@ -30,10 +31,11 @@ from ..store import RunStore
 from .analysis import Analysis, AnalysisSettings, wave_features
 from .identification.estimation import problem_from_features, run as identify
 
-__all__ = ["iterate_store", "pick_changes", "MAX_ITER", "TOL_SIGMA"]
+__all__ = ["iterate_store", "pick_changes", "MAX_ITER", "TOL_SIGMA", "MAX_REL_STD"]
 
 MAX_ITER = 4
 TOL_SIGMA = 0.3
+MAX_REL_STD = 0.2
 
 
 def pick_changes(old: Sequence[dict], new: Sequence[dict], rel_tol: float = 0.005) -> dict:
@@ -85,11 +87,15 @@ def iterate_store(store: RunStore, an: Analysis, settings: AnalysisSettings = An
         problem = problem_from_features(cur.features, src=str(store.path))
         est = identify(problem, names)
         fit = est.fit or {}
-        params = {n: float(v) for n, v in est.params.items() if math.isfinite(v)}
+        # only constants the data determine (relative std below MAX_REL_STD) move the nominal:
+        # an undetermined one would move the predictions at random
+        rel = est.rel_std
+        params = {n: float(v) for n, v in est.params.items() if math.isfinite(v) and rel[n] < MAX_REL_STD}
         entry: dict[str, Any] = {"iteration": k, "constants": params,
                                  "identified": bool(fit.get("identified", False))}
         if fit.get("verdict") == "insufficient_data" or not params:
-            entry["stopped"] = "insufficient data: the picks stay those of the previous round"
+            entry["stopped"] = ("insufficient data" if fit.get("verdict") == "insufficient_data" else
+                                "no constant determined by the data") + ": the picks stay those of the previous round"
             rounds.append(entry)
             break
         spec_k = _with_constants(specimen, params, problem.material)
