@@ -32,8 +32,8 @@ MODES = ("A0", "S0")
 class WaveSettings:
     """Choices of the wave measurement (None: automatic).
 
-    wavelet: (B, C) of the complex Morlet; default: the candidate giving the most
-        independent points (engine.wavefeatures.pipeline, step 6).
+    wavelet: (B, C) of the complex Morlet; default: per frequency the candidate wavelet, the
+        longest whose picks pass (engine.wavefeatures.pipeline, step 6).
     band_hz: (fmin, fmax) of the CWT grid; default from the source and the records
         (engine.wavefeatures.band).
     n_freqs: points of the CWT grid.

@@ -4,6 +4,12 @@ The steps live in ``engine.wavefeatures.band`` (step 1), ``engine.wavefeatures.p
 and ``engine.wavefeatures.picks`` (steps 2-3); this module runs them (steps 4-8) and re-exports
 their public names.
 
+More than ``MAX_CURVES`` shots are first averaged in groups (``stack_shots``). Stage 0
+(``engine.wavefeatures.survey``): the source onset of each shot voted by every direction's
+sensor pairs when the source time is unknown, then per direction where each mode's direct
+packet is in the records; the predictions below are rescaled by it (the nominal model only
+names the mode families), and a contradiction with the nominal is said (``WaveResult.mismatch``).
+
 For each propagation direction of the wave sensors (``measure_waves``):
 
 1. band (``analysis_band``): ``band_hz``, else the source's band (a tone burst's -20 dB
@@ -30,13 +36,15 @@ For each propagation direction of the wave sensors (``measure_waves``):
 5. refinement: the predictions are rescaled by what stage 1 measured (a smooth ratio
    per mode, its scatter as the new margin; the source time fitted when unknown) and
    the picks are redone (stage 2);
-6. wavelet: ``wavelet``, else the one of a few candidates (the paper's for the
-   material, a tone burst's band resolution, cmor2-2, cmor2-1, cmor1-1, cmor0.5-1) that
-   yields the most independent points; S0 and A0 use the same one;
+6. wavelet: ``wavelet``, else per frequency the longest of a few candidates (the paper's
+   for the material, a tone burst's band resolution, cmor2-3, cmor2-2, cmor2-1.5, cmor2-1,
+   cmor1-1, cmor0.5-1) whose first-shot picks pass (``engine.wavefeatures.merge``; at most
+   three measured on all shots);
 7. shots: per shot a curve; across shots the mean, with the scatter-based sigma (not
    below the per-shot noise sigma over sqrt(n)) and the wavelet-bias term of a
    centre-frequency sweep (docs/wavelet-bias.md) in quadrature;
-8. the features keep only points a wavelet resolution apart (``independent_points``).
+8. the features keep only points a wavelet resolution apart (each point's own wavelet,
+   ``merge.independent_mask``), less those off the smooth curve through the others.
 
 Pure: arrays and small frozen dataclasses in, a ``WaveResult`` out (its notes and the
 per-curve ``dropped`` counts included); no files, no run store. Units: s, Hz, m, m/s.
