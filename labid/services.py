@@ -52,6 +52,7 @@ from .inference import (METHODS, check_prior, connect_scheduler, default_params_
                         load_features_file,
                         minima_summary, parse_names, parse_start, run_diagnosis, run_identification,
                         run_of_features, select_data, specimen_for_features)
+from .workflows import waveloop
 from .workflows.acquisition import AcquisitionSession, LiveSession
 from .workflows.analysis import (Analysis, AnalysisSettings, analyze_store, modal_features, modal_table,
                                  store_analysis)
@@ -286,14 +287,18 @@ def features_path(run: str | Path) -> Path:
 
 
 def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
-                 out: str | Path | None = None, temperature_c: float | None = None) -> Analysis:
+                 out: str | Path | None = None, temperature_c: float | None = None,
+                 iterate: int = 0, iterate_params: Sequence[str] | None = None) -> Analysis:
     """Analyse the shots of ``run`` (as ``labid analyze``): write the features file
     ``out`` (default ``features_path(run)``) and ``/results/analysis``.
 
     ``temperature_c`` (the environment probe) goes into ``rig.temperature_c`` unless
     the rig section has one. ``analysis.run`` of the features is the run file's path
     relative to the features file, so that results computed from the features can be
-    stored back into their run (``store_for_features``)."""
+    stored back into their run (``store_for_features``).
+    ``iterate`` > 0: the wave picks are redone with the identified constants until they
+    stop changing, at most that many rounds (``labid.workflows.waveloop``; ``iterate_params``:
+    the constants identified in each round, default identify's)."""
     settings = settings or AnalysisSettings()
     out = Path(out) if out is not None else features_path(run)
     with RunStore(run, "r") as st:               # a damaged or missing run: one line first
@@ -301,6 +306,8 @@ def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
     with WriterLock(run):                        # one writer at a time, refused at once
         with RunStore(run, "r") as st:
             an = analyze_store(st, settings)
+            if iterate:       # issue 24: pick <-> identify until the picks stop changing
+                an = waveloop.iterate_store(st, an, settings, names=iterate_params, max_iter=iterate)
         if temperature_c is not None and math.isfinite(temperature_c):
             an.features.setdefault("rig", {}).setdefault("temperature_c", float(temperature_c))
         an.features.setdefault("analysis", {})["run"] = run_reference(run, out)

@@ -29,7 +29,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -130,6 +130,26 @@ def effective_laminate(lam: Laminate, effects: Effects) -> Laminate:
     return lam
 
 
+def truth_laminate(lam: Laminate, scale: tuple[tuple[str, float], ...]) -> Laminate:
+    """The simulated 'real' plate when it differs from the specimen file (the lab's normal
+    case): its moduli times ``scale`` (the rig's ``[simulation] truth_scale``: ('*', f)
+    every modulus, or (name, f) pairs; E3 follows E2 when the file leaves it out)."""
+    if not scale:
+        return lam
+    for name, mat in lam.materials.items():
+        cur = {"E": mat.E1, "G": mat.G12} if mat.isotropic else \
+            {"E1": mat.E1, "E2": mat.E2, "G12": mat.G12, "G13": mat.G13, "G23": mat.G23}
+        if not mat.isotropic and mat.E3 is not None:
+            cur["E3"] = mat.E3
+        new = dict(cur)
+        for key, f in scale:                    # factors compose: ('*', 0.5), ('G13', 2) leaves G13
+            for k in (cur if key == "*" else [key]):
+                if k in new:
+                    new[k] = new[k] * f
+        lam = lam.with_params(new, material=name)
+    return lam
+
+
 # -- cached engine results ---------------------------------------------------
 def _butter_or_bessel(kind: str, order: int, cutoff_hz: float, fs_hz: float):
     # scipy.signal imported where used: ~0.8 s CPU at the start of every command otherwise
@@ -218,6 +238,9 @@ class SimulatedDevice:
         k = self.shot_index
         self.shot_index += 1
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, ROLE_IDS[self.role], k]))
+        src = self.rig.wave_source
+        if self.role == "wave" and src is not None and src.burst is not None and src.burst.sweep_hz:
+            self._tpl = self._template(k)          # the sweep's turn (cached per frequency)
         return self._synthesise(rng, k)
 
     def close(self) -> None:
@@ -228,9 +251,19 @@ class SimulatedDevice:
     def source(self):
         return self.rig.hammer if self.role == "hammer" else self.rig.wave_source
 
-    def _template(self) -> _Template:
+    def _template(self, shot: int = 0) -> _Template:
         channels, timing, trigger = self._cfg
-        return _cached_template(self.rig, self.specimen, self.role, self.effects, channels, timing)
+        return _cached_template(self.shot_rig(shot), self.specimen, self.role, self.effects, channels, timing,
+                                waves.model_token())
+
+    def shot_rig(self, shot: int):
+        """The rig of wave shot ``shot``: with a tone-burst sweep, the burst at its turn's
+        centre frequency (shot k: the (k mod n)-th of the sweep)."""
+        src = self.rig.wave_source
+        if self.role != "wave" or src is None or src.burst is None or not src.burst.sweep_hz:
+            return self.rig
+        f = src.burst.sweep_hz[shot % len(src.burst.sweep_hz)]
+        return replace(self.rig, wave_source=replace(src, burst=src.burst.at(f)))
 
     def _synthesise(self, rng: np.random.Generator, k: int) -> Record:
         channels, timing, trigger = self._cfg
@@ -307,19 +340,26 @@ class SimulatedDevice:
             "sim_double_hit_delay_s": delay / tpl.fs_fine if dbl else 0.0,
             "sim_onset_s": onset_s, "effects": self.effects.active(),
         }
+        if self.role == "wave" and src.burst is not None and src.burst.sweep_hz:
+            meta["burst_frequency_hz"] = src.burst.sweep_hz[k % len(src.burst.sweep_hz)]
+        if self.rig.sim.truth_scale:
+            meta["sim_truth_scale"] = {k: f for k, f in self.rig.sim.truth_scale}
+        if waves.model_token() != "engine.safe":
+            meta["sim_wave_model"] = waves.model_token()
         return Record(data=data, channels=tuple(channels), timing=timing, trigger=trigger,
                       overload=over, timestamp=time.time(), backend="mock", meta=meta)
 
 
 @functools.lru_cache(maxsize=16)
-def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple, timing: Timing) -> _Template:
+def _cached_template(rig, specimen, role: str, effects: Effects, channels: tuple, timing: Timing,
+                     model: str = "engine.safe") -> _Template:
     spec = rig.device(role)
     fs = timing.rate_hz
     fsf = OVERSAMPLE * fs
     lead = OVERSAMPLE * (timing.pretrigger + 16)
     nf = lead + OVERSAMPLE * (2 * timing.samples + 16)
     t = (np.arange(nf) - lead) / fsf
-    lam = effective_laminate(specimen.laminate, effects)
+    lam = effective_laminate(truth_laminate(specimen.laminate, rig.sim.truth_scale), effects)
     raw: dict[str, np.ndarray] = {}
     if role == "hammer":
         raw = vibration_signals(rig, specimen, lam, effects, channels, t)

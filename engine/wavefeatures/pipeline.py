@@ -4,6 +4,12 @@ The steps live in ``engine.wavefeatures.band`` (step 1), ``engine.wavefeatures.p
 and ``engine.wavefeatures.picks`` (steps 2-3); this module runs them (steps 4-8) and re-exports
 their public names.
 
+More than ``MAX_CURVES`` shots are first averaged in groups (``stack_shots``). Stage 0
+(``engine.wavefeatures.survey``): the source onset of each shot voted by every direction's
+sensor pairs when the source time is unknown, then per direction where each mode's direct
+packet is in the records; the predictions below are rescaled by it (the nominal model only
+names the mode families), and a contradiction with the nominal is said (``WaveResult.mismatch``).
+
 For each propagation direction of the wave sensors (``measure_waves``):
 
 1. band (``analysis_band``): ``band_hz``, else the source's band (a tone burst's -20 dB
@@ -30,13 +36,15 @@ For each propagation direction of the wave sensors (``measure_waves``):
 5. refinement: the predictions are rescaled by what stage 1 measured (a smooth ratio
    per mode, its scatter as the new margin; the source time fitted when unknown) and
    the picks are redone (stage 2);
-6. wavelet: ``wavelet``, else the one of a few candidates (the paper's for the
-   material, a tone burst's band resolution, cmor2-2, cmor2-1, cmor1-1, cmor0.5-1) that
-   yields the most independent points; S0 and A0 use the same one;
+6. wavelet: ``wavelet``, else per frequency the longest of a few candidates (the paper's
+   for the material, a tone burst's band resolution, cmor2-3, cmor2-2, cmor2-1.5, cmor2-1,
+   cmor1-1, cmor0.5-1) whose first-shot picks pass (``engine.wavefeatures.merge``; at most
+   three measured on all shots);
 7. shots: per shot a curve; across shots the mean, with the scatter-based sigma (not
    below the per-shot noise sigma over sqrt(n)) and the wavelet-bias term of a
    centre-frequency sweep (docs/wavelet-bias.md) in quadrature;
-8. the features keep only points a wavelet resolution apart (``independent_points``).
+8. the features keep only points a wavelet resolution apart (each point's own wavelet,
+   ``merge.independent_mask``), less those off the smooth curve through the others.
 
 Pure: arrays and small frozen dataclasses in, a ``WaveResult`` out (its notes and the
 per-curve ``dropped`` counts included); no files, no run store. Units: s, Hz, m, m/s.
@@ -53,8 +61,10 @@ from .. import waves
 from .band import Band, analysis_band, default_wavelet, signal_band, snr_band
 from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of,
                     locate_onset, noise_rms, nominal_cg, sensor_delay)
+from . import merge
+from .survey import survey_direction, survey_onsets
 
-__all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet",
+__all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet", "stack_shots",
            "analysis_band", "echo_path", "noise_rms", "combine_shots", "measure_waves", "sensor_delay",
            "signal_band", "snr_band"]
 
@@ -90,6 +100,26 @@ class WaveResult:
     sensor_length_m: float | None
     notes: tuple[str, ...]
     dropped: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
+    mismatch: tuple[dict, ...] = ()
+
+
+def _apply_survey(d: Direction, shots, settings: WaveSettings, onsets=None):
+    """Stage 0 (``engine.wavefeatures.survey``): the predictions rescaled by where the records
+    put each mode's direct packet; a mode the survey did not see takes the median ratio of
+    those it saw, with that much more margin; the onset range when the source time is unknown."""
+    sv = survey_direction(d, shots, onsets=onsets[0] if onsets else ())
+    if onsets:
+        d.t0_prior = d.t0 = onsets[1]
+    if not sv.ratio:
+        return sv
+    med = float(np.median(list(sv.ratio.values())))
+    for m in ("A0", "S0", "SH0"):
+        if m in sv.scale:
+            d.prior_scale[m], d.prior_margin[m] = sv.scale[m], sv.margin[m]
+        elif np.isfinite(nominal_cg(d, m)).any():
+            d.prior_scale[m] = np.full(d.freqs.size, med)
+            d.prior_margin[m] = float(min(settings.gate_margin + abs(math.log(med)), 0.3))
+    return sv
 
 
 def echo_path(src: tuple[float, float], dst: tuple[float, float], length: float, width: float) -> float:
@@ -253,13 +283,9 @@ def _refine(d: Direction, per_shot: list[dict]) -> None:
         d.margin[m] = float(min(max(4 * spread, 0.015), d.settings.gate_margin))
 
 
-def _independent(freqs, g: waves.GroupVelocity, wl: waves.Wavelet) -> np.ndarray:
-    return waves.independent_points(freqs, g.valid, wl)
-
-
 def _measure(d: Direction, wl: waves.Wavelet, shots, first_only: bool = False):
     """Two-stage measurement with one wavelet: (per-shot curves, first arrivals, counts)."""
-    d.scale, d.margin = {}, {}
+    d.scale, d.margin = dict(d.prior_scale), dict(d.prior_margin)
     t0 = d.t0
     # stage 1: picks by the nominal predictions (wide margins: overlaps not judged), only
     # to rescale the predictions; stage 2: the measurement
@@ -281,8 +307,8 @@ def _wavelet_candidates(d: Direction, settings: WaveSettings) -> list[waves.Wave
         # the centre C giving ~5 independent points over the band (spacing f / (pi C) at B = 2)
         c_band = round(min(max(4 * float(np.mean(f)) / (math.pi * (f[-1] - f[0])), 1.0), 5.0) * 2) / 2
         cands.append(waves.Wavelet(2.0, c_band))
-    cands += [waves.Wavelet(2.0, 2.0), waves.Wavelet(2.0, 1.5), waves.PAPER_ALUMINIUM, waves.Wavelet(1.0, 1.0),
-              waves.Wavelet(0.5, 1.0)]
+    cands += [waves.Wavelet(2.0, 3.0), waves.Wavelet(2.0, 2.0), waves.Wavelet(2.0, 1.5), waves.PAPER_ALUMINIUM,
+              waves.Wavelet(1.0, 1.0), waves.Wavelet(0.5, 1.0)]
     out = []
     for c in cands:
         if c not in out:
@@ -290,24 +316,34 @@ def _wavelet_candidates(d: Direction, settings: WaveSettings) -> list[waves.Wave
     return out
 
 
-def _choose_wavelet(d: Direction, settings: WaveSettings, shots) -> tuple[waves.Wavelet, list[str]]:
-    """The candidate with the most independent points over A0 and S0 (first shot)."""
+def _first_shot(d: Direction, settings: WaveSettings, shots) -> dict:
+    """{wavelet: first-shot curves} of every candidate (one candidate: nothing to compare)."""
     cands = _wavelet_candidates(d, settings)
     if len(cands) == 1:
-        return cands[0], []
-    score = {}
-    for wl in cands:
-        per_shot, _, _ = _measure(d, wl, shots, first_only=True)
-        cur = per_shot[0]
-        n_ind = sum(int(_independent(d.freqs, g, wl).sum()) for g in cur.values())
-        n_modes = sum(int(g.valid.sum()) >= d.settings.min_points for g in cur.values())
-        score[wl] = (n_modes, n_ind)
-    # the most modes measured, then the most independent points; on a tie the earlier
-    # (longer, less biased) candidate
-    best = max(cands, key=lambda c: (score[c], -cands.index(c)))
-    note = (f"direction {d.direction:g} deg: wavelet {best.name}, the most modes and independent points "
-            "of " + ", ".join(f"{c.name} {score[c][0]}/{score[c][1]}" for c in cands))
-    return best, [note]
+        return {cands[0]: None}
+    return {wl: _measure(d, wl, shots, first_only=True)[0][0] for wl in cands}
+
+
+def _names(which, mask) -> str:
+    """The wavelets behind the points of ``mask``, e.g. 'cmor2-1 (4), cmor1-1 (2)'."""
+    n: dict = {}
+    for i in np.flatnonzero(mask):
+        n[which[i].name] = n.get(which[i].name, 0) + 1
+    return ", ".join(f"{k} ({v})" for k, v in n.items())
+
+
+def _wavelet_note(d: Direction, first: dict, used: list, combined: dict, which: dict) -> str:
+    """Which wavelets measured which frequencies, and the candidates' first-shot counts."""
+    f = d.freqs
+    parts = []
+    for wl in used:
+        sel = [i for m in which for i, w in enumerate(which[m]) if w == wl]
+        if sel:
+            parts.append(f"{wl.name} at {f[min(sel)] / 1e3:.3g}-{f[max(sel)] / 1e3:.3g} kHz")
+    cand = "" if None in first.values() else " (valid first-shot frequencies of the candidates: " + ", ".join(
+        f"{wl.name} {sum(int(g.valid.sum()) for g in cur.values())}" for wl, cur in first.items()) + ")"
+    return (f"direction {d.direction:g} deg: per frequency the longest wavelet whose picks pass: "
+            + ("; ".join(parts) or "none") + cand)
 
 
 def _sweep_term(d: Direction, wl: waves.Wavelet, shots, combined: dict) -> dict:
@@ -321,6 +357,25 @@ def _sweep_term(d: Direction, wl: waves.Wavelet, shots, combined: dict) -> dict:
         both = g.valid & alt.valid
         out[m] = np.where(both, 0.5 * np.abs(g.velocity_m_s - alt.velocity_m_s), 0.0)
     return out
+
+
+MAX_CURVES = 12     # shots beyond this are averaged in groups (bench/RESULTS.md, issue 24: cost)
+
+
+def stack_shots(shots: Sequence[Mapping[str, np.ndarray]], max_curves: int = MAX_CURVES):
+    """At most ``max_curves`` records per channel: consecutive shots averaged in equal groups
+    (aligned on their trigger, as recorded) when there are more. The curves are then measured
+    per group; their scatter over the groups gives the sigma, as over shots (the group means
+    are independent), and the noise of each falls as 1 / sqrt(group size). Returns the records
+    and a note ('' when nothing was averaged)."""
+    n = len(shots)
+    if n <= max_curves:
+        return list(shots), ""
+    edges = np.linspace(0, n, max_curves + 1).round().astype(int)
+    out = [{ch: np.mean([shots[k][ch] for k in range(a, b)], axis=0) for ch in shots[a]}
+           for a, b in zip(edges[:-1], edges[1:])]
+    return out, (f"{n} wave shots averaged in {max_curves} groups of {n // max_curves}-{-(-n // max_curves)} "
+                 "(aligned on their trigger); curves and their scatter from the groups")
 
 
 def _pairs(sensors: Sequence[Sensor], shots) -> tuple[list[Sensor], list[dict], list[str]]:
@@ -357,6 +412,9 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
     ``setup`` and the source channel); ``freqs``: the analysis grid (``analysis_band``).
     """
     notes: list[str] = []
+    shots, stack_note = stack_shots(shots)
+    if stack_note:
+        notes.append(stack_note)
     sensors, shots, pair_notes = _pairs(setup.sensors, shots)
     notes += pair_notes
     fam = setup.source.families
@@ -366,21 +424,43 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
     by_dir: dict[float, list] = {}
     for ws in sensors:
         by_dir.setdefault(round(ws.direction_deg, 6), []).append(ws)
-    out, curves, arrivals, dropped = [], {}, {}, {}
+    out, curves, arrivals, dropped, mismatch = [], {}, {}, {}, []
     path_m = length_m = None
+    # stage 0: one source, one onset per shot, voted for by every direction's sensor pairs
+    onsets = survey_onsets([direction_of(setup, settings, freqs, dd, w) for dd, w in sorted(by_dir.items())],
+                           shots)
+    if onsets:
+        notes.append("source onset from the records (every direction's sensor pairs): "
+                     + ", ".join(f"{t * 1e6:.1f}" for t in onsets[0]) + " us on the record axis")
     for direction, wss in sorted(by_dir.items()):
         if setup.force_channel is None and len({s.distance_m for s in wss}) < 2:
             notes.append(f"direction {direction:g} deg: one sensor and no source record; "
                          "velocity from the trigger time (source assumed at t = 0)")
         d = direction_of(setup, settings, freqs, direction, wss)
         n_rec = len(next(iter(shots[0].values())))
+        sv = _apply_survey(d, shots, settings, onsets)
+        notes.extend(sv.notes)
+        for m, (r, line) in sv.mismatch.items():
+            notes.append(line)
+            mismatch.append({"mode": m, "direction_deg": float(direction), "velocity_ratio": r, "message": line})
         d.record_s = (n_rec - setup.pretrigger) / setup.fs_hz - (d.t0_prior[0] if d.t0_prior else 0.0)
-        wl, wl_notes = _choose_wavelet(d, settings, shots)
-        notes.extend(wl_notes)
-        per_shot, first_arrs, counts = _measure(d, wl, shots)
-        combined = {m: combine_shots([s[m] for s in per_shot if m in s]) for m in per_shot[0]}
-        floor = _sweep_term(d, wl, shots, combined)
-        combined = {m: combine_shots([s[m] for s in per_shot if m in s], floor[m]) for m in combined}
+        first = _first_shot(d, settings, shots)
+        used = merge.plan(first) if None not in first.values() else list(first)
+        results = {}
+        for wl in used:
+            per_shot, first_arrs, counts = _measure(d, wl, shots)
+            comb = {m: combine_shots([s[m] for s in per_shot if m in s]) for m in per_shot[0]}
+            floor = _sweep_term(d, wl, shots, comb)
+            results[wl] = ({m: combine_shots([s[m] for s in per_shot if m in s], floor[m]) for m in comb},
+                           first_arrs, counts)
+        primary = max(used, key=lambda w: sum(int(g.valid.sum()) for g in results[w][0].values()))
+        combined, which, first_arrs = {}, {}, results[primary][1]
+        for m in results[primary][0]:
+            combined[m], which[m] = merge.merge({w: results[w][0][m] for w in used if m in results[w][0]})
+        counts = {m: {**_reasons(first_arrs[m], combined[m].valid),
+                      **{k: v for k, v in results[primary][2][m].items() if k.startswith(("relabelled", "rejected"))}}
+                  for m in combined}
+        notes.append(_wavelet_note(d, first, used, combined, which))
         for mode, gv in combined.items():
             key = f"{mode}_{direction:g}"
             far, near = d.pair(mode)
@@ -399,16 +479,20 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
                 continue
             # the features carry only points a wavelet resolution apart: neighbours on the
             # dense grid share their errors (the full curve stays in the run file)
-            ok = waves.independent_points(freqs, ok, wl)
+            ok = merge.independent_mask(freqs, ok, which[mode])
+            bad = merge.off_curve(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok])
+            if bad.any():
+                counts[mode]["off the smooth curve"] = int(bad.sum())
+                ok[np.flatnonzero(ok)[bad]] = False
             out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
                                  dict(counts[mode])))
             how = "source to sensor" if far is not None and near is None and setup.force_channel is not None \
                 else ("two sensors" if near is not None else "from the trigger time")
             notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} independent frequencies "
                          f"{freqs[ok].min() / 1e3:.3g}-{freqs[ok].max() / 1e3:.3g} kHz from {len(shots)} shot(s), "
-                         f"{wl.name}, {how}; dropped: {why or 'none'}")
+                         f"{_names(which[mode], ok)}, {how}; dropped: {why or 'none'}")
         if path_m is None:
             far, near = d.pair("A0") if d.pair("A0")[0] is not None else d.pair("S0")
             path_m = far.distance_m - (near.distance_m if near is not None else 0.0)
             length_m = far.length_m
-    return WaveResult(tuple(out), curves, arrivals, path_m, length_m, tuple(notes), dropped)
+    return WaveResult(tuple(out), curves, arrivals, path_m, length_m, tuple(notes), dropped, tuple(mismatch))

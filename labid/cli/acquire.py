@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import signal
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from .. import services
 from .options import add_json_option, write_json
 from ..base.errors import UserError
-from ..inputs.rig import load_rig
+from ..inputs.rig import load_rig, parse_truth_scale
 from ..inputs.specimen import load_specimen
 from ..base.summary import stream
 
@@ -36,6 +37,10 @@ def register(sub) -> None:
     p.add_argument("--effects", default="", metavar="NAME=V,..",
                    help="unmodelled effects injected into the simulated rig, e.g. "
                         "'sensor_mass=0.003,temperature=10' (CONTRACT effect names, SI units)")
+    p.add_argument("--truth", default=None, metavar="F|NAME=F,..",
+                   help="the simulated plate's moduli are the specimen file's times F (e.g. 0.7), or named "
+                        "ones (e.g. 'G13=0.6,E2=1.3'): a plate whose constants the file does not know "
+                        "(overrides the rig's [simulation] truth_scale; mock backend only)")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -45,6 +50,8 @@ def run(args) -> dict:
         raise UserError("effects can only be injected into the simulated rig; expected --backend mock",
                         key="--effects")
     effects = services.parse_effects(args.effects, key="--effects")
+    if args.truth is not None and args.backend != "mock":
+        raise UserError("--truth sets the simulated plate; expected --backend mock", key="--truth")
     for opt in ("hits", "waves"):
         v = getattr(args, opt)
         if v is not None and v < 0:
@@ -64,6 +71,9 @@ def run(args) -> dict:
         sys.stderr.flush()
 
     rig, specimen = load_rig(args.rig), load_specimen(args.specimen)   # errors before any file
+    if args.truth is not None:
+        rig = replace(rig, sim=replace(rig.sim, truth_scale=parse_truth_scale(args.truth, "--truth",
+                                                                              "command line")))
     rig.check_specimen(specimen.length, specimen.width)
     cal = services.calibration_status(rig)              # the calibration sheet, said before any shot
     for note in cal["notes"]:

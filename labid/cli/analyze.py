@@ -39,6 +39,11 @@ def register(sub) -> None:
                    help="(default now) S0 group velocities go into the features whenever measured")
     p.add_argument("--without-s0", action="store_true",
                    help="keep the S0 group velocities out of the features (always stored in the run)")
+    p.add_argument("--iterate", type=int, nargs="?", const=4, default=0, metavar="N",
+                   help="pick <-> identify: identify the constants, redo the wave picks with them, until "
+                        "the picks stop changing (at most N rounds, default 4); recorded in analysis.iterations")
+    p.add_argument("--iterate-params", default=None, metavar="P1,P2,..",
+                   help="the constants identified in each round (default: identify's choice)")
     add_json_option(p)
     p.set_defaults(func=run)
 
@@ -70,7 +75,11 @@ def run(args) -> dict:
     out_path = args.out or str(services.features_path(args.run))
     if progress.enabled():      # a terminal: say what the next seconds are for
         progress.note(f"labid analyze: {args.run}: resonance peaks and CWT group velocities")
-    feats = services.run_analysis(args.run, settings, out=args.out).features
+    if args.iterate < 0 or args.iterate > 20:
+        raise UserError(f"value {args.iterate}: expected 1 to 20 rounds", key="--iterate")
+    names = [n.strip() for n in args.iterate_params.split(",") if n.strip()] if args.iterate_params else None
+    feats = services.run_analysis(args.run, settings, out=args.out, iterate=args.iterate,
+                                  iterate_params=names).features
     w = stream(args)
     if w is not None:
         m = feats.get("modal") or {}
@@ -85,7 +94,15 @@ def run(args) -> dict:
             dropped = ", ".join(f"{k} x{n}" for k, n in sorted(x.get("dropped", {}).items(), key=lambda t: -t[1]))
             w.write(f"{x['mode']} {x['direction_deg']:g} deg: {len(f)} velocities, "
                     f"{f[0] / 1e3:.3g}-{f[-1] / 1e3:.3g} kHz" + (f"; dropped: {dropped}" if dropped else "") + "\n")
+        for mm in feats.get("analysis", {}).get("nominal_mismatch", []):
+            w.write("warning: " + mm["message"] + "\n")
+        iterated = bool(feats.get("analysis", {}).get("iterations"))
         for note in feats.get("analysis", {}).get("notes", []):
+            if note.startswith("pick <-> identify"):
+                w.write(note + "\n")
+            if iterated and not note.startswith("after identification"):
+                continue                         # the first round's drops: superseded
+            note = note.split(": ", 1)[1] if note.startswith("after identification") else note
             if note.startswith("no velocity") or "not reported" in note:
                 w.write("dropped: " + note + "\n")
         if args.without_s0:

@@ -141,7 +141,9 @@ def summary(res: services.Identification) -> str:
     identified, why (``Identification.status``: the one definition), residuals, notes."""
     lines = []
     fit, out = res.fit, res.estimate
-    if not fit.get("consistent") and fit.get("unexplained_peaks"):
+    if fit.get("verdict") == "insufficient_data":     # issue 24: the data cannot hold these constants
+        lines.append("INSUFFICIENT DATA: " + fit["insufficient_data"]["message"].split(": ", 1)[-1])
+    elif not fit.get("consistent") and fit.get("unexplained_peaks"):
         lines.append(f"INCONSISTENT FIT: {fit['unexplained_peaks']} of {len(res.pairing or [])} peaks match no "
                      "predicted mode: the constants below are NOT identified (labid diagnose looks for the cause)")
     elif not fit.get("consistent"):
@@ -166,7 +168,8 @@ def summary(res: services.Identification) -> str:
         lines.append(f"  {n:>7} = {v * sc:10.4g}{unit}, u (k=1, fit) {s * sc:.3g}{unit}{flag}")
     r = out.get("residual") or {}
     lines.append("  residual: " + ", ".join(f"{k} {v:.3g}" for k, v in r.items() if v is not None))
-    lines += [f"  note: {msg}" for msg in res.warnings]
+    said = (fit.get("insufficient_data") or {}).get("message")
+    lines += [f"  note: {msg}" for msg in res.warnings if msg != said]
     if res.posterior is not None:
         ps = res.posterior
         lines.append(f"  MCMC posterior ({ps['n_samples']} samples, acceptance {ps['acceptance']:.2f}): "

@@ -227,10 +227,20 @@ _SOURCE_KEYS = {
 
 def _burst(tab: Mapping, where: str, src: str, amplitude_key: str, amplitude_what: str) -> Burst:
     """The burst keys of a tone_burst source or a pzt's excitation table."""
+    f = tab.get("frequency_hz")
+    sweep: tuple[float, ...] = ()
+    if isinstance(f, list):          # a sweep of centre frequencies
+        if not f or len(f) > 64:
+            raise _err(src, where + "frequency_hz", f"value {f!r}: expected a centre frequency in Hz or a "
+                       "list of 1 to 64 of them (a sweep)")
+        sweep = tuple(_num({"frequency_hz": x}, "frequency_hz", where, src, lo=0.0, lo_open=True,
+                           what="a centre frequency in Hz") for x in f)
+        tab = {**tab, "frequency_hz": sweep[0]}
     b = Burst(_num(tab, "frequency_hz", where, src, lo=0.0, lo_open=True, what="a centre frequency in Hz"),
               _num(tab, "cycles", where, src, default=5.0, lo=0.5, hi=1000.0, what="a number of cycles"),
               _str(tab, "window", where, src, choices=WINDOWS, default="hann"),
-              _num(tab, amplitude_key, where, src, default=1.0, lo=0.0, lo_open=True, what=amplitude_what))
+              _num(tab, amplitude_key, where, src, default=1.0, lo=0.0, lo_open=True, what=amplitude_what),
+              sweep if len(sweep) > 1 else ())
     return b
 
 
@@ -301,7 +311,8 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
                               hi=1.0, what="a probability"),
         wave_fmax_hz=_num(simt, "wave_fmax_hz", sw, src, default=d0.wave_fmax_hz, lo=0.0, lo_open=True,
                           what="a frequency in Hz"),
-        reflections=_int(simt, "reflections", sw, src, default=d0.reflections, lo=0, hi=2))
+        reflections=_int(simt, "reflections", sw, src, default=d0.reflections, lo=0, hi=2),
+        truth_scale=parse_truth_scale(simt.get("truth_scale", ()), f"{sw}truth_scale", src))
     devs_tab = _table(doc, "devices", src, required=True)
     if not devs_tab:
         raise _err(src, "devices", "empty; expected at least one [devices.NAME] table")
@@ -338,6 +349,46 @@ def rig_from_dict(doc: Mapping[str, Any], src: str = "<inline>", text: str = "")
                waves=_int(sess, "waves", "session.", src, default=3, lo=0),
                max_retries=_int(sess, "max_retries", "session.", src, default=5, lo=0),
                text=text, source=src, calibration=cal)
+
+
+TRUTH_NAMES = ("E1", "E2", "E3", "G12", "G13", "G23", "E", "G")
+
+
+def parse_truth_scale(value, key: str = "simulation.truth_scale", src: str = "<inline>"
+                      ) -> tuple[tuple[str, float], ...]:
+    """The simulated plate's modulus factors: a number (every modulus), a table
+    {G13 = 0.6, ...} or the text 'G13=0.6,E2=1.2' / '0.7' (the --truth option); each
+    factor in [0.2, 5]. UserError naming ``key`` otherwise."""
+    if isinstance(value, str):
+        text = value.strip()
+        try:
+            value = float(text)
+        except ValueError:
+            items = {}
+            for item in filter(None, (t.strip() for t in text.split(","))):
+                name, sep, v = item.partition("=")
+                try:
+                    items[name.strip()] = float(v) if sep else None
+                except ValueError:
+                    items[name.strip()] = None
+            value = items
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        pairs = [("*", float(value))]
+    elif isinstance(value, Mapping):
+        pairs = list(value.items())
+    elif value == () or value == []:
+        return ()
+    else:
+        raise _err(src, key, f"value {value!r}: expected a factor (e.g. 0.7) or NAME=FACTOR pairs with NAME "
+                   f"one of {list(TRUTH_NAMES)}")
+    out = []
+    for name, f in pairs:
+        if name != "*" and name not in TRUTH_NAMES:
+            raise _err(src, key, f"name {name!r}: expected one of {list(TRUTH_NAMES)}")
+        if not isinstance(f, (int, float)) or isinstance(f, bool) or not 0.2 <= float(f) <= 5.0:
+            raise _err(src, key, f"{name}: factor {f!r}: expected a number in [0.2, 5]")
+        out.append((str(name), float(f)))
+    return tuple(out)
 
 
 def _device_roles(doc: Mapping[str, Any], src: str) -> set[str]:

@@ -85,12 +85,19 @@ class WaveSensor:
 @dataclass(frozen=True)
 class Burst:
     """A windowed sine burst: centre frequency (Hz), cycles, window ('hann', 'hamming',
-    'rect') and amplitude (N for a force tone burst, V for a piezo's excitation)."""
+    'rect') and amplitude (N for a force tone burst, V for a piezo's excitation); with
+    ``sweep_hz`` a sweep of centre frequencies (the lab's usual practice: the wave shots
+    cycle through them, each shot's meta says which)."""
 
     frequency_hz: float
     cycles: float = 5.0
     window: str = "hann"
     amplitude: float = 1.0
+    sweep_hz: tuple[float, ...] = ()     # a sweep: the centre frequencies shot in turn (frequency_hz the first)
+
+    def at(self, frequency_hz: float) -> "Burst":
+        """The same burst at one centre frequency (no sweep)."""
+        return Burst(float(frequency_hz), self.cycles, self.window, self.amplitude)
 
     @property
     def duration_s(self) -> float:
@@ -136,6 +143,9 @@ class SimSettings:
     miss_probability: float = 0.0
     wave_fmax_hz: float = 400.0e3
     reflections: int = 1          # edge reflections of the wave shots: image-source order 0, 1 or 2
+    # the simulated plate's moduli are the specimen file's times these factors: (('*', f),) scales
+    # every modulus (E1, E2, E3, G12, G13, G23; E, G), (('G13', f), ...) named ones; () none
+    truth_scale: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)

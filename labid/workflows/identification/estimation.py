@@ -25,6 +25,7 @@ from engine.identify.stages import (BOX, POISSON_MAX, RUNAWAY, FitContext, bound
                                     pairing_report)
 from engine.identify.stages import admissibility as engine_admissibility
 from engine.identify.stages import verdict as engine_verdict
+from engine.identify import sufficiency
 from engine.laminate import PhysicsError
 
 from ...base.errors import UserError
@@ -242,9 +243,12 @@ def run(problem: Problem, names: Sequence[str] | None = None, start: Mapping[str
             st = {n: st[n] for n in names}
     if method not in METHODS:
         raise UserError(f"method {method!r}: expected one of {list(METHODS)}", key="--method")
-    return fit_blocks(context(problem), problem.blocks, names, st, method=method, prior=prior, max_iter=max_iter,
-                      scale_sigmas=scale_sigmas, consistency=consistency, global_stage=global_stage,
-                      notes=problem.notes, on_error=lambda e: UserError(str(e), file=problem.source), held=held)
+    est = fit_blocks(context(problem), problem.blocks, names, st, method=method, prior=prior, max_iter=max_iter,
+                     scale_sigmas=scale_sigmas, consistency=consistency, global_stage=global_stage,
+                     notes=problem.notes, on_error=lambda e: UserError(str(e), file=problem.source), held=held)
+    # issue 24: fewer independent points than constants is a verdict, not an estimate
+    return sufficiency.apply(est, sufficiency.assess(sufficiency.datasets_of(problem.blocks, problem.features),
+                                                     est.names))
 
 
 def context(problem: Problem) -> FitContext:

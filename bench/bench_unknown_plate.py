@@ -1,0 +1,133 @@
+"""Guided waves on a plate whose constants the specimen file does not know (issue 24).
+
+The simulated rig synthesises a plate whose moduli are the specimen file's times
+``truth_scale`` (``[simulation] truth_scale``): with 1/1.4 and 1/0.6 the file's constants are
+40 % too stiff and 40 % too soft. ``labid.workflows.analysis.wave_features`` measures the
+group velocities from those records with the file's (wrong) constants as its nominal model;
+each point is compared with the group velocity of the TRUE plate from the independent model
+``bench/independent/legendre_safe.py`` (not labid's SAFE).
+
+Records: 'simulated' = ``mock_hw`` with labid's SAFE (engine.safe) as the plate; 'independent'
+= the same rig with the plate's transfer functions from ``legendre_safe`` (the hook
+``mock_hw.waves.transfer_model``).
+
+Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_unknown_plate.py [case ...]
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench._machine import machine  # noqa: E402
+from bench.independent.legendre_safe import branches, layers_of, plate_of, transfer  # noqa: E402
+from labid.workflows.acquisition import AcquisitionSession  # noqa: E402
+from labid.workflows.analysis import AnalysisSettings, wave_features  # noqa: E402
+from labid.inputs.rig import read_rig_text, rig_from_text  # noqa: E402
+from labid.inputs.specimen import load_specimen, specimen_from_dict  # noqa: E402
+from mock_hw import waves as mock_waves  # noqa: E402
+from mock_hw.rig import SimulatedDevice, truth_laminate  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+LABELS = ("A0", "SH0", "S0")          # the branches of legendre_safe below the first cut-off
+ORDER = 4
+
+
+def independent_transfer(lam, r, f, *, direction_deg=0.0, quantity="strain", sensor_length_m=0.0,
+                         source="point", load="normal", actuator_radius_m=0.0, source_face="top",
+                         sensor_face="top", **_):
+    """``engine.safe.mode_transfer``'s signature, answered by the independent model."""
+    pl = plate_of(layers_of(lam.plies, direction_deg), ORDER)
+    H = transfer(pl, r, f, load=load, radius_m=actuator_radius_m, source_face=source_face,
+                 sensor_face=sensor_face, sensor_length_m=sensor_length_m)
+    return {LABELS[int(k[4:])] if int(k[4:]) < 3 else k: v for k, v in H.items()}
+
+
+def reference(lam, direction: float, f: np.ndarray) -> dict:
+    """{mode: group velocity of the true plate} from the independent model (m/s)."""
+    pl = plate_of(layers_of(lam.plies, direction), ORDER)
+    br = branches(pl, float(np.max(f)) * 1.05)
+    return {LABELS[j]: br.at(j, 2 * np.pi * np.asarray(f))[1] for j in range(3)}
+
+
+def records(rig, spec, n, seed=0, model="simulated"):
+    dev = SimulatedDevice(rig, spec, "wave", None, seed)
+    d = rig.device("wave")
+    dev.configure(d.channels, d.timing, d.trigger)
+    session = AcquisitionSession.__new__(AcquisitionSession)
+    if model == "independent":
+        with mock_waves.transfer_model("legendre_safe", independent_transfer):
+            return [session._read(dev, d) for _ in range(n)]
+    return [session._read(dev, d) for _ in range(n)]
+
+
+def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSettings(), seed=0):
+    """One case: records of the true plate (spec's moduli x scale), analysed with spec as nominal."""
+    rig = replace(rig, sim=replace(rig.sim, truth_scale=(("*", scale),)))
+    true_lam = truth_laminate(spec.laminate, rig.sim.truth_scale)
+    recs = records(rig, spec, n, seed, model)
+    notes: list[str] = []
+    t, c = time.perf_counter(), time.process_time()
+    feats, curves, _, _, info = wave_features(recs, rig, spec, settings, notes)
+    wall, cpu = time.perf_counter() - t, time.process_time() - c
+    off = 1 / scale - 1
+    print(f"\n{name}: file {off * 100:+.0f} % vs the plate, {model} records, {n} shots "
+          f"(analysis {wall:.1f} s wall, {cpu:.1f} s CPU)")
+    for ln in notes:
+        if "arrives" in ln or "found in the records" in ln:
+            print("  note:", ln[:160])
+    rows = []
+    for w in feats:
+        f = np.array(w["frequency_hz"])
+        v = np.array(w["group_velocity_m_s"])
+        s = np.array(w["sigma_m_s"])
+        ref = reference(true_lam, w["direction_deg"], f)[w["mode"]]
+        e = v / ref - 1
+        z = np.abs(v - ref) / s
+        rows.append((w["mode"], w["direction_deg"], f.size, f.min(), f.max(), e, s / ref, z))
+        print(f"  {w['mode']} {w['direction_deg']:g} deg: {f.size} independent points "
+              f"{f.min() / 1e3:.0f}-{f.max() / 1e3:.0f} kHz; error vs the true plate "
+              f"{100 * e.min():+.2f} .. {100 * e.max():+.2f} %, sigma {100 * (s / ref).min():.2f} .. "
+              f"{100 * (s / ref).max():.2f} %, max |err|/sigma {z.max():.1f}")
+        bad = np.abs(e) > 0.01
+        if bad.any():
+            print("    points off by more than 1 %: " + ", ".join(
+                f"{fi / 1e3:.0f} kHz {100 * ei:+.1f} % (sigma {100 * si:.2f} %)"
+                for fi, ei, si in zip(f[bad], e[bad], (s / ref)[bad])))
+    reported = {(w["mode"], w["direction_deg"]) for w in feats}
+    for key, d in info.get("dropped", {}).items():
+        m, dd = key.split("_")
+        if (m, float(dd)) not in reported:
+            print(f"  {m} {dd} deg: not reported; dropped " + ", ".join(f"{k} x{v}" for k, v in
+                                                                        sorted(d.items(), key=lambda x: -x[1])[:4]))
+    return rows, cpu
+
+
+def main(argv) -> None:
+    print(f"machine: {machine()}")
+    cfrp = load_specimen("cfrp")
+    large = load_specimen(str(HERE / "rigs" / "cfrp_large.toml"))
+    default = rig_from_text(read_rig_text("default")[0], "builtin:default")
+    two_dir = rig_from_text((HERE / "rigs" / "cfrp_pencil_2dir.toml").read_text(), "bench/rigs/cfrp_pencil_2dir.toml")
+    sweep = rig_from_text((HERE / "rigs" / "cfrp_pzt_sweep_2dir.toml").read_text(),
+                          "bench/rigs/cfrp_pzt_sweep_2dir.toml")
+    cases = {
+        "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
+        "two_dir": lambda sc, m: run_case("1 m CFRP plate (pencil at the centre, MFCs 10 / 25 cm along 0 and 90 deg)", two_dir, large, 3, sc, m),
+        "sweep": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz, 2 shots each, MFCs 10 / 25 cm along 0 / 90 deg)",
+                                        sweep, large, 10, sc, m),
+    }
+    pick = [a for a in argv if a in cases] or list(cases)
+    models = [a for a in argv if a in ("simulated", "independent")] or ["simulated"]
+    for name in pick:
+        for model in models:
+            for scale in (1 / 1.4, 1 / 0.6):
+                cases[name](scale, model)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,146 @@
+"""Curves measured with several wavelets (or several runs) merged into one per mode and direction.
+
+A wavelet's length is a compromise: a long one resolves frequency (more independent points,
+less bias), a short one resolves time (packets close to the direct one, an edge echo, the
+other mode, stay apart). Where the echoes are is a matter of frequency (the group velocity
+changes along the band), so one wavelet for the whole band is too long at the low end or too
+short at the high end. Here, per frequency, the longest candidate wavelet whose picks pass
+every check gives the point (``plan``, ``merge``), and independence is judged with each
+point's own resolution (``independent_mask``). The same merge joins the curves of tone-burst
+runs at different centre frequencies (``merge_runs``): each point keeps its own sigma.
+
+Pure: arrays and ``engine.waves`` types in and out. Units: Hz, m/s.
+"""
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from .. import waves
+
+__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "off_curve"]
+
+SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
+
+
+def by_length(cands: Sequence[waves.Wavelet]) -> list[waves.Wavelet]:
+    """The wavelets from the longest (time std C sqrt(B) / 2f) to the shortest; ties keep order."""
+    return sorted(cands, key=lambda w: -w.center * np.sqrt(w.bandwidth))
+
+
+def plan(first: Mapping[waves.Wavelet, Mapping[str, waves.GroupVelocity]], max_wavelets: int = 3
+         ) -> list[waves.Wavelet]:
+    """The wavelets to measure with, longest first: per mode and frequency the longest
+    candidate valid there on the first shot gets it; the ``max_wavelets`` that get the most
+    frequencies (at least 3 each) are kept."""
+    order = by_length(list(first))
+    gain = {wl: 0 for wl in order}
+    modes = {m for cur in first.values() for m in cur}
+    for m in modes:
+        taken = None
+        for wl in order:
+            g = first[wl].get(m)
+            if g is None:
+                continue
+            new = g.valid if taken is None else (g.valid & ~taken)
+            gain[wl] += int(new.sum())
+            taken = g.valid.copy() if taken is None else (taken | g.valid)
+    keep = [wl for wl in sorted(order, key=lambda w: -gain[w]) if gain[wl] >= 3][:max_wavelets]
+    return [wl for wl in order if wl in keep] or order[:1]
+
+
+def merge(curves: Mapping[waves.Wavelet, waves.GroupVelocity]) -> tuple[waves.GroupVelocity, list]:
+    """One curve from several wavelets' curves on the same grid: per frequency the longest
+    wavelet valid there. Returns the curve and the wavelet of each point (None: no point)."""
+    order = by_length(list(curves))
+    f = curves[order[0]].frequencies_hz
+    v, s = np.full(f.size, np.nan), np.full(f.size, np.nan)
+    valid = np.zeros(f.size, bool)
+    which: list = [None] * f.size
+    for wl in order:
+        g = curves[wl]
+        new = g.valid & ~valid
+        v[new], s[new] = g.velocity_m_s[new], g.sigma_m_s[new]
+        for i in np.flatnonzero(new):
+            which[i] = wl
+        valid |= new
+    return waves.GroupVelocity(f, v, s, valid), which
+
+
+def independent_mask(freqs_hz, valid, which: Sequence, spacing: float = SPACING) -> np.ndarray:
+    """Valid frequencies nearly independent of their kept neighbour: greedy from the lowest,
+    kept when at least ``spacing`` / 2 x (sum of the two points' wavelet frequency-stds) above
+    the last kept one (with one wavelet: ``waves.independent_points``'s rule, taken at the
+    upper point for both)."""
+    f = np.asarray(freqs_hz, float)
+    keep = np.zeros(f.size, bool)
+    last = None
+    for i in np.flatnonzero(np.asarray(valid, bool)):
+        s_i = float(which[i].freq_std_hz(f[i]))
+        # the std of the lower point's wavelet taken at the upper frequency (conservative)
+        if last is None or f[i] - f[last] >= 0.5 * spacing * (s_i + float(which[last].freq_std_hz(f[i]))):
+            keep[i] = True
+            last = i
+    return keep
+
+
+def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_tol: float = 0.01
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One dispersion curve from the independent points of several runs (e.g. tone bursts at
+    different centre frequencies): ``curves`` are (frequency, velocity, sigma) arrays. Points
+    of different runs at the same frequency (within ``rel_tol``) are averaged with inverse-
+    variance weights, their sigma being the larger of the propagated one and half their
+    spread (two runs that disagree say so); the others are kept with their own sigma.
+    Points off the smooth curve through the others (``off_curve``) are left out.
+    Returns (frequency, velocity, sigma, number of runs behind each point), by frequency."""
+    pts = sorted((float(f), float(v), float(s)) for F, V, S in curves for f, v, s in zip(F, V, S)
+                 if np.isfinite(v) and np.isfinite(s) and s > 0)
+    out_f, out_v, out_s, out_n = [], [], [], []
+    i = 0
+    while i < len(pts):
+        j = i + 1
+        while j < len(pts) and pts[j][0] - pts[i][0] <= rel_tol * pts[i][0]:
+            j += 1
+        grp = pts[i:j]
+        w = np.array([1.0 / p[2] ** 2 for p in grp])
+        vv = np.array([p[1] for p in grp])
+        v = float(np.sum(w * vv) / np.sum(w))
+        s = float(1.0 / np.sqrt(np.sum(w)))
+        if len(grp) > 1:
+            s = max(s, 0.5 * float(vv.max() - vv.min()))
+        out_f.append(float(np.mean([p[0] for p in grp])))
+        out_v.append(v)
+        out_s.append(s)
+        out_n.append(len(grp))
+        i = j
+    F, V, S, N = np.array(out_f), np.array(out_v), np.array(out_s), np.array(out_n, int)
+    bad = off_curve(F, V, S)
+    return F[~bad], V[~bad], S[~bad], N[~bad]
+
+
+def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0) -> np.ndarray:
+    """Mask of points inconsistent with the smooth curve through the others: a group-velocity
+    curve below the first cut-off is smooth in ln f, so a polynomial of ``degree`` in ln f is
+    fitted (weights 1/sigma, iteratively leaving out the worst point) and a point farther
+    than ``k`` x max(its sigma, the robust scatter of the residuals) is flagged (a pick on the
+    wrong lobe of a packet split by a spectral notch, or on a residual echo). Fewer than
+    degree + 4 points: nothing is flagged."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    bad = np.zeros(f.size, bool)
+    if f.size < degree + 4:
+        return bad
+    x = np.log(f / f.max())
+    for _ in range(f.size // 4 + 1):
+        keep = ~bad
+        w = 1.0 / np.maximum(s[keep], 1e-3 * np.abs(v[keep]))
+        c = np.polynomial.polynomial.polyfit(x[keep], v[keep], degree, w=w)
+        res = v - np.polynomial.polynomial.polyval(x, c)
+        mad = 1.4826 * float(np.median(np.abs(res[keep])))
+        z = np.abs(res) / (k * np.maximum(s, mad))
+        z[bad] = 0.0
+        j = int(np.argmax(z))
+        if z[j] <= 1.0 or keep.sum() <= degree + 3:
+            break
+        bad[j] = True
+    return bad

@@ -1,0 +1,71 @@
+"""engine.wavefeatures.merge (curves of several wavelets or tone-burst runs) and
+engine.identify.sufficiency (the insufficient_data verdict): exact bookkeeping."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from engine import waves
+from engine.identify.sufficiency import VERDICT, DataSet, assess
+from engine.wavefeatures import merge
+
+
+def _curve(v, valid):
+    f = np.array([50e3, 60e3, 70e3, 80e3])
+    v = np.asarray(v, float)
+    return waves.GroupVelocity(f, v, np.full(4, 1.0), np.asarray(valid, bool))
+
+
+def test_merge_takes_the_longest_valid_wavelet_per_frequency():
+    long_, short = waves.Wavelet(2.0, 5.0), waves.Wavelet(2.0, 1.0)
+    g, which = merge.merge({short: _curve([1, 2, 3, 4], [1, 1, 1, 1]), long_: _curve([10, 20, 30, 40], [0, 1, 0, 1])})
+    assert list(g.velocity_m_s) == [1, 20, 3, 40]
+    assert which == [short, long_, short, long_]
+    assert merge.by_length([short, long_]) == [long_, short]
+
+
+def test_independent_points_use_each_points_own_resolution():
+    """With one wavelet the rule is waves.independent_points'; a long wavelet's points may be
+    closer (its frequency std is smaller)."""
+    f = np.linspace(40e3, 200e3, 161)
+    ok = np.ones(f.size, bool)
+    w1 = waves.Wavelet(2.0, 1.0)
+    same = merge.independent_mask(f, ok, [w1] * f.size)
+    assert np.array_equal(same, waves.independent_points(f, ok, w1))
+    longer = merge.independent_mask(f, ok, [waves.Wavelet(2.0, 5.0)] * f.size)
+    assert longer.sum() > 3 * same.sum()
+
+
+def test_merge_runs_averages_coincident_points_and_keeps_their_disagreement():
+    """Two bursts at one frequency: the inverse-variance mean, sigma not below half their
+    difference; the other points keep their own."""
+    a = (np.array([100e3, 150e3]), np.array([1000.0, 1500.0]), np.array([3.0, 4.0]))
+    b = (np.array([150e3, 200e3]), np.array([1510.0, 1600.0]), np.array([4.0, 5.0]))
+    f, v, s, n = merge.merge_runs([a, b])
+    assert list(f) == [100e3, 150e3, 200e3] and list(n) == [1, 2, 1]
+    assert v[1] == pytest.approx(1505.0) and s[1] == pytest.approx(5.0)      # max(4/sqrt2, 10/2)
+    assert (v[0], s[0], v[2], s[2]) == (1000.0, 3.0, 1600.0, 5.0)
+
+
+def test_a_point_off_a_smooth_curve_is_flagged():
+    f = np.linspace(50e3, 250e3, 12)
+    v = 1200 + 800 * np.sqrt(f / 250e3)
+    s = np.full(f.size, 2.0)
+    assert not merge.off_curve(f, v, s).any()
+    v[5] *= 1.05
+    assert list(np.flatnonzero(merge.off_curve(f, v, s))) == [5]
+
+
+def test_one_wave_point_for_four_constants_is_insufficient_data():
+    """The case of issue 24: one point, four constants fitted: never a verdict on the fit."""
+    r = assess([DataSet("waves", 1, "A0", 0.0, (180e3, 180e3))], ("E1", "E2", "G13", "G23"))
+    assert not r.enough and r.verdict == VERDICT == "insufficient_data"
+    assert r.message.startswith("insufficient data: 1 independent point for 4 constants")
+    assert any("another direction" in h for h in r.help) and any("S0" in h for h in r.help)
+    assert any("wider band" in h for h in r.help) and any("resonances" in h for h in r.help)
+
+
+def test_enough_points_pass_and_modal_counts():
+    r = assess([DataSet("modal", 10), DataSet("waves", 8, "A0", 0.0, (20e3, 200e3)),
+                DataSet("waves", 6, "A0", 90.0, (20e3, 200e3))], ("E1", "E2", "G12", "G13", "G23", "nu12"))
+    assert r.enough and r.verdict is None and r.n_points == 24 and r.n_params == 6
