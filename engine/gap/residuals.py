@@ -109,9 +109,10 @@ class GapFit:
         sigma = self.sigma_measured if raw else self.sigma
         out = []
         if nm:
-            def jac(p, names):
+            def jac(p, names):     # with the discretisation correction, as predict_modal has it
                 f, J = fw.modal_forward().jacobian(dict(p), list(names))
-                return f, J
+                corr = getattr(fw, "peak_correction", None)
+                return (f, J) if corr is None else (f * corr, J * corr[:, None])
             out.append(DataBlock("modal", self.y[:nm], sigma[:nm],
                                  lambda p: fw.predict_modal(p, {}), jac, kind="modal"))
         if len(self.y) > nm:
