@@ -123,7 +123,7 @@ def _rig(length: float, width: float) -> tuple[tuple, tuple]:
 
 def _data_choice(kind: str, rng) -> str:
     if kind in WAVE_EFFECTS:
-        return str(rng.choice(["waves", "combined"]))
+        return "waves"                 # a pitch-catch set-up of its own (the path-length case)
     if kind in LIBRARY or kind in OUT_OF_LIBRARY:
         return "modal"
     return str(rng.choice(["modal", "modal", "combined", "waves"]))
