@@ -130,14 +130,15 @@ def _data_choice(kind: str, rng) -> str:
 
 
 def recipe(seed: int, kind: str, specimen: str | None = None, data: str | None = None,
-           n_modes: int | None = None, noise: float | None = None) -> dict:
+           n_modes: int | None = None, noise: float | None = None, magnitude: float | None = None,
+           wave_sets: tuple | None = None, band: tuple | None = None) -> dict:
     """Everything random of a case, drawn from ``seed`` (and the forced choices)."""
     if kind not in KINDS:
         raise ValueError(f"kind {kind!r}: expected one of {KINDS}")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 28]))
     spec = specimen or str(rng.choice(list(SPECIMENS)))
-    if kind in ANGLE_EFFECTS and spec == "aluminium":
-        spec = "cfrp"                                  # an angle needs an orthotropic plate
+    if (kind in ANGLE_EFFECTS and spec == "aluminium") or (kind == "ply_angle_error" and spec == "wood"):
+        spec = "cfrp"         # an angle needs an orthotropic plate; one ply of several a laminate
     table = SPECIMENS[spec][0]()
     mat = dict(table["materials"][table["layup"]["material"]])
     names = [k for k in ("E1", "E2", "nu12", "G12", "G13", "G23", "E", "G") if k in mat]   # E3, nu13, nu23 held
@@ -152,6 +153,7 @@ def recipe(seed: int, kind: str, specimen: str | None = None, data: str | None =
     if kind != "clean":
         lo, hi, signed = RANGES[kind]
         mag = float(rng.uniform(lo, hi)) * (float(rng.choice([-1.0, 1.0])) if signed else 1.0)
+        mag = mag if magnitude is None else float(magnitude)
     L, W = float(table["plate"]["length"]), float(table["plate"]["width"])
     acc, _ = _rig(L, W)
     if kind == "soft_patch":
@@ -165,6 +167,10 @@ def recipe(seed: int, kind: str, specimen: str | None = None, data: str | None =
             if min(np.hypot(p[0] - a, p[1] - b) for a, b in acc) > 0.06:
                 break
         extra["at"] = p.tolist()
+    if wave_sets is not None:
+        extra["wave_sets"] = [list(w) for w in wave_sets]
+    if band is not None:
+        extra["band"] = list(band)
     noise_seed = int(rng.integers(2 ** 31))
     return {"seed": int(seed), "kind": kind, "specimen": spec, "truth": truth, "data": data, "n_modes": n,
             "noise": noise, "magnitude": mag, "extra": extra, "noise_seed": noise_seed, "params": list(params),
@@ -217,6 +223,8 @@ def ritz_for(r: dict, table: dict, order: int) -> RitzPlate:
 def _waves(r: dict, table: dict) -> list[tuple[str, float, np.ndarray, np.ndarray]]:
     """(mode, direction, frequencies, true group velocities as the lab measures them) per set."""
     _, sets, band, path = SPECIMENS[r["specimen"]]
+    sets = r["extra"].get("wave_sets", sets)
+    band = r["extra"].get("band", band)
     kind, mag = r["kind"], r["magnitude"]
     tab = copy.deepcopy(table)
     tab["materials"][tab["layup"]["material"]].update(r["truth"])
@@ -228,7 +236,7 @@ def _waves(r: dict, table: dict) -> list[tuple[str, float, np.ndarray, np.ndarra
     order = default_discretisation(lam, band[1])[0] + SAFE_EXTRA_ORDER
     out = []
     for mode, direction, n in sets:
-        f = np.geomspace(band[0], band[1], n)
+        f = np.geomspace(band[0], band[1], n) if n > 1 else np.array([float(np.sqrt(band[0] * band[1]))])
         cg = np.asarray(group_velocity(lam, f, mode=mode, direction_deg=direction, order=order), float)
         t = (path + (mag if kind == "path_length" else 0.0)) / cg + (mag if kind == "timing_offset" else 0.0)
         out.append((mode, direction, f, path / t))
@@ -268,7 +276,8 @@ def generated(r: dict) -> dict:
 
 
 def draw(seed: int, kind: str, **force) -> Case:
-    """The case of ``seed`` with condition ``kind`` (``force``: specimen, data, n_modes, noise)."""
+    """The case of ``seed`` with condition ``kind`` (``force``: specimen, data, n_modes, noise,
+    magnitude)."""
     r = recipe(seed, kind, **force)
     g = generated(r)
     table = SPECIMENS[r["specimen"]][0]()
