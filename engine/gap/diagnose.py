@@ -26,7 +26,7 @@ model-discretisation allowance, ``GapOptions.model_rel_sigma``):
    detectable candidate whose screen is not conclusively worse (``skip_dchi2``
    behind an accepted refit) is refitted jointly with the constants
    (:mod:`engine.gap.refit`; at most ``max_refits``), and so is the known
-   look-alike partner of the best one; ranked by chi^2 (equal parameter count,
+   look-alike partner of the best one if only the cap left it out; ranked by chi^2 (equal parameter count,
    so by BIC too). The held-out gap (two interleaved folds of modes and of wave
    bands, linearised about the fit) is reported.
 4. Verdict (:mod:`engine.gap.verdict`): ``none`` without a significant gap;
@@ -220,8 +220,8 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
                       progress: Callable[[str, int, int], None] | None, proposals=()) -> list[Candidate]:
     """Every applicable candidate screened (quadratic screen when there is a gap); every
     detectable one whose screen is not conclusively worse than an accepted refit refitted (at
-    most ``max_refits``), then the look-alike partner of the best; the peaks re-paired under
-    each (``proposals``: pairings to try too, with their constants; see
+    most ``max_refits``), then the look-alike partner of the best if the cap left it out; the
+    peaks re-paired under each (``proposals``: pairings to try too, with their constants; see
     :func:`engine.gap.repair.repaired`); ``progress(stage, done, total)`` after each step."""
     Ja = np.vstack([base.J, np.diag(base.w)])     # augmented Jacobian for projections (prior rows)
     names = [n for n in opts.candidates if applies(n, problem)
@@ -252,12 +252,12 @@ def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opt
         if progress:
             progress("refit", len(names) + len(done), total)
     ok = sorted([c for c in done.values() if accepted(c, base.test, opts.accept_alpha)], key=lambda c: c.cost)
-    if ok:              # the best one's look-alike partners, so that a confusable group is measured
+    if ok:              # the best one's look-alike partners left out by the cap, so that a group is measured
         by_name = {c.name: c for c in ranked}
         for pair in LOOKALIKES:
             if ok[0].name in pair:
                 other = next(iter(pair - {ok[0].name}))
-                if other in by_name and other not in done:
+                if other in by_name and other not in done and by_name[other].chi2_linear <= best_ok + opts.skip_dchi2:
                     done[other] = _refit_one(by_name[other], F, base, fl, opts, proposals)
     return [done.get(c.name, c) for c in cands]
 
