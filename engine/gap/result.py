@@ -162,7 +162,7 @@ class GapResult:
     pairing_used: str = ""
     #: the verdict's confusable group(s) (verdict ``insufficient_data``: empty)
     confusable_groups: tuple[ConfusableGroup, ...] = ()
-    #: what to add when the verdict is ``insufficient_data`` (one sentence per remedy)
+    #: verdict ``insufficient_data``: why, then what to add (one remedy per item)
     advice: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:

@@ -38,8 +38,9 @@ WEAK_REL_STD = 0.3
 
 
 def insufficient(problem: Features, n_features: int, names: Sequence[str]) -> tuple[str, ...]:
-    """What to add (one remedy per line) when ``n_features`` independent features do not
-    exceed the ``names`` fitted plus one effect parameter; () when there are enough."""
+    """(why, remedy, remedy, ...) when ``n_features`` independent features do not exceed the
+    ``names`` fitted plus one effect parameter (the remedies: what to add); () when there
+    are enough."""
     k = len(names)
     if n_features > k + 1:
         return ()
@@ -47,16 +48,16 @@ def insufficient(problem: Features, n_features: int, names: Sequence[str]) -> tu
     out = [f"{n_features} independent feature(s) for {k} fitted constant(s) plus one effect parameter: "
            f"at least {need} more are needed before a gap can be told from the fit itself"]
     if problem.modal is not None:
-        out.append("measure more natural frequencies (a wider band, another response point for the "
-                   "modes the accelerometers barely see)")
+        out.append("more natural frequencies (a wider band; another response point for the modes the "
+                   "accelerometers barely see)")
     else:
-        out.append("add a modal test: 10 or more natural frequencies (hammer, free-free)")
+        out.append("a modal test: 10 or more natural frequencies (hammer, free-free)")
     if problem.waves:
-        out.append("measure group velocities at more frequencies per wave set, along another "
-                   "direction, or of the other wave mode (S0 with A0)")
+        out.append("group velocities at more frequencies per wave set, along another direction, or of "
+                   "the other wave mode (S0 with A0)")
     else:
-        out.append("add guided-wave group velocities (A0 and S0 over a band)")
-    out.append(f"or fit fewer constants (--params: {', '.join(names)} now) and hold the others")
+        out.append("guided-wave group velocities (A0 and S0 over a band)")
+    out.append(f"or fewer fitted constants (--params: {', '.join(names)} now), holding the others")
     return tuple(out)
 
 

@@ -127,7 +127,7 @@ def _print(res: dict, out) -> None:
         out.write(f"  confusable: {' ~ '.join(grp['effects'] + grp['outside_library'])}\n")
         for how in grp["separate_by"]:
             out.write(f"    separate: {how}\n")
-    for a in res.get("advice") or []:
-        out.write(f"  add: {a}\n")
+    for i, a in enumerate(res.get("advice") or []):
+        out.write(f"  {'too few' if i == 0 else 'add'}: {a}\n")
     for w in res["where"][:6]:
         out.write(f"  where: {w}\n")
