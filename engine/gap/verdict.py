@@ -124,7 +124,10 @@ def group(verdict: str, refitted: Sequence[Candidate], test: Mapping, accept_alp
 def moved_far(before: Mapping[str, float], after: Mapping[str, float], std_after: Mapping[str, float] | None,
               std_before: Mapping[str, float]) -> tuple[str, ...]:
     """Flags for the constants a refit moved by more than ``MOVED_FAR`` (either way) from the
-    start estimate, saying whether the data determine them weakly (rel. std > WEAK_REL_STD)."""
+    start estimate: weakly determined after the refit (relative std > WEAK_REL_STD: the move
+    is not a measurement, issue 28's nu12 +136 % under a taper), or well determined on both
+    sides (the effect may stand in for something else). A constant the gap had left poorly
+    determined at the start and the refit determines well is the effect's doing: not flagged."""
     out = []
     for n_, b in before.items():
         a = after.get(n_)
@@ -132,12 +135,13 @@ def moved_far(before: Mapping[str, float], after: Mapping[str, float], std_after
             continue
         rs_a = (std_after or {}).get(n_, float("nan")) / a
         rs_b = std_before.get(n_, float("nan")) / b
-        weak = (rs_a > WEAK_REL_STD) or (rs_b > WEAK_REL_STD)
-        out.append(f"{n_} {a / b - 1:+.0%} from the start (std {rs_a:.0%} after, {rs_b:.0%} before): "
-                   + ("weakly determined by these data; the refit moved it far outside its start, so "
-                      "read it as unknown, not as measured" if weak else
-                      "a well-determined constant moved this far: the effect may stand in for "
-                      "something else"))
+        head = f"{n_} {a / b - 1:+.0%} from the start (std {rs_a:.0%} after, {rs_b:.0%} before): "
+        if not rs_a <= WEAK_REL_STD:
+            out.append(head + "weakly determined by these data; the refit moved it far outside its start, "
+                       "so read it as unknown, not as measured")
+        elif rs_b <= WEAK_REL_STD:
+            out.append(head + "a well-determined constant moved this far: the effect may stand in for "
+                       "something else")
     return tuple(out)
 
 
