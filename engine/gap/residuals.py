@@ -53,6 +53,9 @@ class GapFit:
         self.nominal = {n: mat[n] for n in self.names}
         #: peaks identify left unexplained (no residual, no Jacobian row), or None
         self.unexplained = getattr(fw, "unexplained", None)
+        #: the same problem on the discretisation check's finer mesh, built when first needed
+        #: (engine.gap.convergence.under_effect)
+        self.fine_forward = None
 
     def residual(self, params, effects) -> np.ndarray:
         r = (self.fw.predict(params, effects) - self.y) / self.sigma
