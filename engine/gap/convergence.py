@@ -30,7 +30,7 @@ from ..identify.stages import discretisation
 from ..plate.convergence import FINE_FACTOR, finer_mesh, mode_corrections
 from .forward import GapForward
 from .refit import Refit, RefitError, refit
-from .repair import current_selection, with_selection
+from .repair import current_selection, most_likely, state, with_selection
 from .residuals import GapFit
 
 __all__ = ["peak_corrections", "ModeCorrection", "under_effect", "REBUILD"]
@@ -105,8 +105,9 @@ def peak_corrections(fw, params, n_extra: int = 4, tol: float | None = 2e-4
 def under_effect(name: str, rf: Refit, F: GapFit, w: np.ndarray, theta_prior: np.ndarray, fl,
                  max_nfev: int, tol: float) -> Refit:
     """The refit of ``name`` again with the discretisation correction of the plate *with* the
-    effect, at the refit's constants and magnitude, when the effect rebuilds the plate model
-    and the corrections of the paired modes exceed ``tol`` (relative); the better of the two.
+    effect, at the refit's constants and magnitude (the peaks paired again by the corrected
+    frequencies under the effect), when the effect rebuilds the plate model and the
+    corrections of the paired modes exceed ``tol`` (relative); the better of the two.
 
     The corrections are per mode of the plate without the effect; an effect that reshapes the
     modes (4 g at each accelerometer, a 4 deg turn of a wood-like plate) changes each mode's
@@ -134,9 +135,20 @@ def under_effect(name: str, rf: Refit, F: GapFit, w: np.ndarray, theta_prior: np
     Fc = GapFit(p, F.fw, F.model_rel_sigma, names=F.names)
     Fc.mode_correction = ModeCorrection(np.asarray(mc.ratio, float), np.asarray(mc.error_rel, float))
     F2 = with_selection(Fc, idx)
+    try:     # the new corrections can move modes past each other: pair by the corrected frequencies
+        r2 = F2.residual(rf.constants, eff)
+        f_pred, vis, tau = state(F2, rf.constants, eff, r2, idx)
+        new = most_likely(F2, f_pred, vis, tau).index
+        if not np.array_equal(new, idx) and np.sum(new < 0) <= np.sum(idx < 0):
+            F2 = with_selection(Fc, new)
+    except (ValueError, np.linalg.LinAlgError):
+        pass
     try:
         rf2 = refit(name, rf.magnitude, F2, np.log([rf.constants[k] for k in F.names]), w, theta_prior, fl,
                     max_nfev)
     except RefitError:
         return rf
-    return replace(rf2, selection=rf.selection, penalty=rf.penalty) if rf2.chi2 < rf.chi2 else rf
+    sel = current_selection(F2)
+    changed = sel is not None and not np.array_equal(sel, current_selection(F))
+    return replace(rf2, selection=tuple(int(j) for j in sel) if changed else rf.selection,
+                   penalty=rf.penalty) if rf2.chi2 < rf.chi2 else rf

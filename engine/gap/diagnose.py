@@ -205,8 +205,8 @@ def _refit_one(c: Candidate, F: GapFit, base: _ConstantsFit, fl, opts: GapOption
             except RefitError:
                 pass
         rf = repaired(c.name, rf, F, base.w, base.theta_prior, fl, opts.max_nfev, proposals, c.magnitude_linear)
-        if stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha and rf.chi2 < 0.25 * base.test["chi2"]:
-            # explains most of the gap but fails the test: the mesh correction under the effect?
+        if stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha and rf.chi2 < 0.5 * base.test["chi2"]:
+            # explains much of the gap but fails the test: the mesh correction under the effect?
             nm = F.fw.n_modal
             tol = 0.2 * float(np.min(F.sigma_measured[:nm] / F.y[:nm])) if nm else 0.0
             rf = under_effect(c.name, rf, F, base.w, base.theta_prior, fl, opts.max_nfev, tol)
