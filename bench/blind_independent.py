@@ -145,6 +145,10 @@ def recipe(seed: int, kind: str, specimen: str | None = None, data: str | None =
     mat = dict(table["materials"][table["layup"]["material"]])
     names = [k for k in ("E1", "E2", "nu12", "G12", "G13", "G23", "E", "G") if k in mat]   # E3, nu13, nu23 held
     dev = {k: (0.03 if k == "nu12" else 0.05) * float(rng.standard_normal()) for k in names}
+    while "E" in mat and mat["E"] * (1 + dev["E"]) / (2 * mat["G"] * (1 + dev["G"])) - 1.0 >= 0.5:
+        # E and G drawn apart can give nu >= 0.5 (no positive-definite stiffness; seeds 85, 183):
+        # G's deviation drawn again (the seeds whose nu < 0.5 keep their draws)
+        dev["G"] = 0.05 * float(rng.standard_normal())
     data = data or _data_choice(kind, rng)
     params, prior = fit if fit is not None else fitted(data, "E" in mat)
     # the constants the lab fits deviate from nominal; the ones it holds are as it holds them
