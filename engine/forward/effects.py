@@ -44,7 +44,8 @@ from typing import Mapping
 import numpy as np
 
 __all__ = ["EffectSpec", "EFFECTS", "EffectError", "ALPHA_FIBRE", "ALPHA_MATRIX", "ALPHA_ISOTROPIC",
-           "F_REF", "temperature_params", "log_sinc_slope", "PLATE_EFFECTS", "ANGLE_EFFECTS"]
+           "F_REF", "temperature_params", "log_sinc_slope", "PLATE_EFFECTS", "ANGLE_EFFECTS",
+           "LOOKALIKES", "separation", "outside_lookalikes"]
 
 #: temperature coefficients of the moduli, 1/K: E -> E (1 + alpha dT) (typical CFRP / aluminium)
 ALPHA_FIBRE = -1.0e-4      # E1 of an orthotropic ply (fibre dominated)
@@ -93,6 +94,50 @@ EFFECTS: dict[str, EffectSpec] = {e.name: e for e in (
 #: for the angle effects; evaluated by ``engine.gap.forward.GapForward``
 PLATE_EFFECTS = ("misalignment", "ply_angle_error", "density_gradient", "thickness_taper")
 ANGLE_EFFECTS = ("misalignment", "ply_angle_error")
+
+
+#: pairs of library effects that can leave nearly the same signature, and what measurement
+#: separates them (the diagnosis names them as one confusable group when the data do not)
+LOOKALIKES: dict[frozenset, str] = {
+    frozenset({"path_length", "timing_offset"}): (
+        "over a nearly flat part of the dispersion curve a path error (delay ~ 1/c_g) and a "
+        "timing offset (constant delay) shift every arrival alike; separated by a second "
+        "source-sensor distance, a wider band reaching the dispersive low-frequency A0, or S0"),
+    frozenset({"density_gradient", "thickness_taper"}): (
+        "both are second order in the free-free frequencies and load the same modes; separated "
+        "by the thickness at a few points (calliper or ultrasonic gauge) or by weighing, or by "
+        "group velocities along the length (a taper changes the local A0 dispersion, a density "
+        "gradient much less)"),
+    frozenset({"sensor_mass", "density_gradient"}): (
+        "mass near the corners: separated by moving or changing one accelerometer (a sensor "
+        "mass moves with it)"),
+    frozenset({"misalignment", "ply_angle_error"}): (
+        "both turn the material axes; separated by group velocities at several directions "
+        "(a whole-layup turn shifts every direction alike) or a ply-by-ply cut/CT check"),
+    frozenset({"thickness", "temperature"}): (
+        "both rescale the moduli the constants absorb; separated by S0 velocities (thickness) "
+        "or by measuring at another temperature"),
+}
+
+#: effects outside the library that measurably mimic a library effect within the noise
+#: (issue 28, bench/bench_gap_independent.py: a mild anticlastic curvature is fitted by
+#: support springs), with what separates them
+OUTSIDE_LOOKALIKES: dict[str, tuple[tuple[str, str], ...]] = {
+    "support_stiffness": (("anticlastic curvature of the plate (not modelled)",
+                           "re-hang the plate on softer or longer wires, or at other points: a spring "
+                           "effect moves, a curvature does not; or check flatness with a straightedge "
+                           "across both diagonals"),),
+}
+
+
+def separation(a: str, b: str) -> str | None:
+    """What separates library effects ``a`` and ``b`` (None: not a known look-alike pair)."""
+    return LOOKALIKES.get(frozenset({a, b}))
+
+
+def outside_lookalikes(name: str) -> tuple[tuple[str, str], ...]:
+    """(look-alike outside the library, what separates it) for a library effect ``name``."""
+    return OUTSIDE_LOOKALIKES.get(name, ())
 
 
 def temperature_params(params: Mapping[str, float], dT: float) -> dict[str, float]:

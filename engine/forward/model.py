@@ -101,18 +101,21 @@ class ForwardModel:
     # -- the one plate-model builder (engine.gap.GapForward extends _plate_parts / _paired) --
     def _plate_parts(self, effects: Mapping[str, float]) -> tuple:
         """(laminate, thickness field for ``PlateModel.with_thickness_field`` or None,
-        extra point masses (x, y, kg)) of the plate with ``effects``; here: ``thickness``."""
+        extra point masses (x, y, kg), added mass data on the model's sparse pattern
+        (``PlateModel.m_add`` layout) or None) of the plate with ``effects``; here: ``thickness``."""
         lam = self.features.laminate
         th = effects.get("thickness", 0.0)
-        return (lam.scaled_thickness(1.0 + th) if th else lam), None, []
+        return (lam.scaled_thickness(1.0 + th) if th else lam), None, [], None
 
     def _plate_model(self, effects: Mapping[str, float]) -> PlateModel:
         """The nominal plate model with every modal effect of ``effects`` built in: the
         laminate and thickness field of ``_plate_parts``, its point masses, then
         ``sensor_mass`` kg at every accelerometer and ``support_stiffness`` N/m at every support."""
         p = self.features
-        lam, field, pts = self._plate_parts(effects)
+        lam, field, pts, m_extra = self._plate_parts(effects)
         model = self.base.with_laminate(lam) if lam is not p.laminate else self.base
+        if m_extra is not None:      # a mass distribution precomputed on this mesh (one scaled vector)
+            model = model.with_added_mass(m_extra)
         if field is not None:
             model = model.with_thickness_field(field)
         mass, spring = effects.get("sensor_mass", 0.0), effects.get("support_stiffness", 0.0)

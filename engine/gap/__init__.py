@@ -4,8 +4,9 @@ Public seam:
 
 * :mod:`.diagnose`: ``diagnose(features, options, forward) -> GapResult``
   (frozen; ``to_dict()`` is the JSON of ``labid diagnose``), ``GapOptions``,
-  ``gap_test`` and the result parts ``GapFigures``, ``RankedEffect``,
-  ``Undetectable``, ``ConstantsChange``, ``FeatureResiduals``;
+  ``gap_test``; the result parts (:mod:`.result`) ``GapFigures``, ``RankedEffect``,
+  ``Undetectable``, ``ConstantsChange``, ``FeatureResiduals``, ``ConfusableGroup``;
+* :mod:`.verdict`: ``insufficient``, ``decide``, ``group``, ``ranking`` (the verdict rules);
 * :mod:`.where`: ``feature_labels``, ``GroupStat`` (and the grouping/fold helpers);
 * :mod:`.candidates`: ``Candidate``, ``screen`` (signatures, detectability);
 * :mod:`.refit`: ``refit``, ``Refit`` (joint refit of constants and one effect);
@@ -18,8 +19,8 @@ Public seam:
 The effect registry is ``engine.forward.EFFECTS``.
 """
 from .candidates import Candidate, screen
-from .diagnose import (ConstantsChange, FeatureResiduals, GapFigures, GapOptions, GapResult, RankedEffect,
-                       Undetectable, diagnose, gap_test)
+from .diagnose import (ConfusableGroup, ConstantsChange, FeatureResiduals, GapFigures, GapOptions, GapResult,
+                       RankedEffect, Undetectable, diagnose, gap_test)
 from .refit import Refit, RefitError, refit
 from .residuals import GapError, GapFit
 from .where import GroupStat, feature_labels
@@ -28,7 +29,7 @@ from .forward import GapForward
 from .pairing import PairingCheck, pairing_check, propose_pairing
 from .convergence import peak_corrections
 
-__all__ = ["diagnose", "GapOptions", "GapResult", "GapFigures", "RankedEffect", "Undetectable",
+__all__ = ["diagnose", "GapOptions", "GapResult", "GapFigures", "RankedEffect", "Undetectable", "ConfusableGroup",
            "ConstantsChange", "FeatureResiduals", "gap_test", "feature_labels", "GroupStat", "Candidate",
            "screen", "Refit", "RefitError", "refit", "GapFit", "GapError", "StartEstimate", "own_estimate",
            "GapForward", "PairingCheck", "pairing_check", "propose_pairing", "peak_corrections"]

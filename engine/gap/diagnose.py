@@ -13,17 +13,28 @@ model-discretisation allowance, ``GapOptions.model_rel_sigma``):
    whether re-pairing explains it (verdict ``pairing``).
 2. Where: chi^2 split by modality, mode, mode family (from the predicted mode
    shapes), frequency band, wave mode and direction (:mod:`engine.gap.where`).
+   Without a gap only the effects that need no new plate model are screened
+   (their ``undetectable`` report, e.g. the temperature bias, is kept).
+   With no more independent features than the constants plus one effect
+   parameter the verdict is ``insufficient_data`` (with what to add) and no
+   effect is tried (:func:`engine.gap.verdict.insufficient`).
+2. Where: chi^2 split by modality, mode, mode family (from the predicted mode
+   shapes), frequency band, wave mode and direction (:mod:`engine.gap.where`).
 3. Which: every candidate effect is screened (:mod:`engine.gap.candidates`:
-   signature, what the constants absorb, detectability); the ``top_k`` best
-   linear candidates are refitted jointly with the constants
-   (:mod:`engine.gap.refit`), ranked by chi^2 (equal parameter count, so by
-   BIC too), and checked on held-out data (two interleaved folds of modes and
-   of wave bands, linearised about the fit).
-4. Verdict: ``none`` without a significant gap; ``pairing`` when re-pairing the
-   peaks passes the test and beats every effect; the best effect when it
-   passes the chi^2 test (p > ``accept_alpha``), beats "no effect" by BIC and
-   shrinks the held-out gap; otherwise ``unattributed``. Effects whose chi^2
-   is within ``confusable_dchi2`` of the best form the confusable set.
+   signature, what the constants absorb, detectability; with a gap, a quadratic
+   screen so that second-order effects are judged by their shape); every
+   detectable candidate whose screen is not conclusively worse (``skip_dchi2``
+   behind an accepted refit) is refitted jointly with the constants
+   (:mod:`engine.gap.refit`; at most ``max_refits``), and so is the known
+   look-alike partner of the best one if only the cap left it out; ranked by chi^2 (equal parameter count,
+   so by BIC too). The held-out gap (two interleaved folds of modes and of wave
+   bands, linearised about the fit) is reported.
+4. Verdict (:mod:`engine.gap.verdict`): ``none`` without a significant gap;
+   ``pairing`` when re-pairing the peaks passes the test and beats every
+   effect; the best effect when it passes the chi^2 test (p > ``accept_alpha``)
+   and beats "no effect" by BIC; otherwise ``unattributed``. Accepted effects
+   whose chi^2 is within ``confusable_dchi2`` of the best form its confusable
+   group, with what would separate them.
 
 Gap figures are rms whitened residuals (1 = noise level). :func:`diagnose`
 returns a frozen :class:`GapResult`; ``GapResult.to_dict()`` is the JSON of
@@ -32,28 +43,32 @@ returns a frozen :class:`GapResult`; ``GapResult.to_dict()`` is the JSON of
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
-from typing import Callable, Mapping
+from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 from scipy import stats
 
 from ..features import Features
+from ..fit import Prior, estimate
 from ..forward import EFFECTS, ForwardModel
-from ..forward.effects import ANGLE_EFFECTS, PLATE_EFFECTS
+from ..forward.effects import ANGLE_EFFECTS, LOOKALIKES, PLATE_EFFECTS
 from ..identify.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
 from .candidates import Candidate, applies, screen
-from .convergence import peak_corrections
+from .convergence import REBUILD, peak_corrections, under_effect
 from .forward import GapForward
 from .pairing import pairing_check
 from .refit import RefitError, refit
-from .repair import current_selection, repair_note, repaired
+from .repair import corrected_pairing, current_selection, repair_note, repaired
 from .residuals import GapError, GapFit
+from .result import (ConfusableGroup, ConstantsChange, FeatureResiduals, GapFigures, GapResult, RankedEffect,
+                     Undetectable)
 from .start import StartEstimate, identify_pairing, own_estimate
-from .where import GroupStat, feature_labels, folds, group_table, groups, held_out, mode_families
+from .verdict import accepted, decide, group, insufficient, ranking
+from .where import feature_labels, folds, group_table, groups, held_out, mode_families
 
 __all__ = ["GapOptions", "GapResult", "GapFigures", "RankedEffect", "Undetectable", "ConstantsChange",
-           "FeatureResiduals", "diagnose", "gap_test"]
+           "FeatureResiduals", "ConfusableGroup", "diagnose", "gap_test"]
 
 
 @dataclass(frozen=True)
@@ -64,9 +79,9 @@ class GapOptions:
     accept_alpha: float = 0.001
     model_rel_sigma: tuple[float, float] = (1.5e-4, 2e-4)   # (modal, waves) relative
     detect_sigma: float = 3.0
-    top_k: int = 3
+    max_refits: int = 5              # candidates refitted at most (the look-alike partner besides)
     confusable_dchi2: float = 4.0
-    skip_dchi2: float = 25.0         # linear chi^2 this far above an accepted refit's: not refitted
+    skip_dchi2: float = 25.0         # screened chi^2 this far above an accepted refit's: not refitted
     candidates: tuple[str, ...] = tuple(EFFECTS)
     max_nfev: int = 30
     discretisation: bool = True      # per-mode FE error from a second, finer mesh in the whitening
@@ -88,152 +103,6 @@ def gap_test(r: np.ndarray, J: np.ndarray, w: np.ndarray, alpha: float) -> dict:
     p = float(stats.chi2.sf(chi, dof))
     return {"chi2": chi, "dof": dof, "p_value": p, "threshold": float(stats.chi2.isf(alpha, dof)),
             "significant": bool(p < alpha)}
-
-
-# ------------------------------------------------------------------ result --
-@dataclass(frozen=True)
-class GapFigures:
-    """The gap before and after the chosen effect (rms residual/sigma), chi^2 test figures."""
-
-    before: float
-    after: float
-    held_out_before: float
-    held_out_after: float
-    chi2_before: float
-    chi2_after: float
-    dof: float
-    n: int
-    p_value_before: float
-    p_value_after: float
-    threshold_chi2: float
-    false_alarm_rate: float
-    significant: bool
-    unit: str = "rms of residual/sigma (1 = noise level)"
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
-@dataclass(frozen=True)
-class RankedEffect:
-    """One candidate in the ranking (``std``, ``held_out_after``, ``constants_after``,
-    ``iterations`` only when refitted)."""
-
-    name: str
-    magnitude: float
-    std: float | None
-    unit: str
-    gap_after: float
-    score: float
-    delta_chi2: float
-    refitted: bool
-    held_out_after: float | None
-    detectable: bool
-    absorbed_fraction: float
-    bias_in_constants_per_unit: Mapping[str, float]
-    constants_after: Mapping[str, float] | None
-    iterations: int | None
-    converged: bool | None = None
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
-@dataclass(frozen=True)
-class Undetectable:
-    """An effect the constants absorb, with the bias it puts into them per unit magnitude."""
-
-    name: str
-    absorbed_fraction: float
-    unit: str
-    bias_in_constants_per_unit: Mapping[str, float]
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
-@dataclass(frozen=True)
-class ConstantsChange:
-    """Fitted constants without effect (and their std), and with the chosen effect (SI)."""
-
-    before: Mapping[str, float]
-    before_std: Mapping[str, float]
-    after: Mapping[str, float]
-    relative_change: Mapping[str, float]
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
-@dataclass(frozen=True)
-class FeatureResiduals:
-    """Per feature: label, modality, set, whitened residual before/after, sigma; mode families."""
-
-    labels: tuple[str, ...]
-    modality: tuple[str, ...]
-    set: tuple[str, ...]
-    residual_before: np.ndarray
-    residual_after: np.ndarray
-    sigma: np.ndarray
-    mode_families: tuple[str, ...] | None
-
-    def to_dict(self) -> dict:
-        return {"labels": list(self.labels), "modality": list(self.modality), "set": list(self.set),
-                "residual_before": self.residual_before.tolist(),
-                "residual_after": self.residual_after.tolist(), "sigma": self.sigma.tolist(),
-                "mode_families": None if self.mode_families is None else list(self.mode_families)}
-
-
-@dataclass(frozen=True)
-class GapResult:
-    """The diagnosis (see module docstring); :meth:`to_dict` gives the JSON document."""
-
-    gap: GapFigures
-    where: tuple[str, ...]
-    where_detail: tuple[GroupStat, ...]
-    effects: tuple[RankedEffect, ...]
-    verdict: str
-    confusable: tuple[str, ...]
-    undetectable: tuple[Undetectable, ...]
-    errors: Mapping[str, str]
-    groups: tuple[GroupStat, ...]
-    constants: ConstantsChange
-    features: FeatureResiduals
-    converged: bool
-    message: str
-    start: StartEstimate | None = None
-    pairing: dict | None = None
-    model_sigma: np.ndarray | None = None
-    notes: tuple[str, ...] = ()
-    #: the peak pairing the chosen result uses: "identify" (identify's own), "order", "mac",
-    #: or "re-paired under EFFECT" (engine.gap.repair)
-    pairing_used: str = ""
-
-    def to_dict(self) -> dict:
-        st = self.start
-        return {
-            "gap": self.gap.to_dict(),
-            "where": list(self.where),
-            "where_detail": [g.to_dict() for g in self.where_detail],
-            "effects": [e.to_dict() for e in self.effects],
-            "verdict": self.verdict,
-            "confusable": list(self.confusable),
-            "undetectable": [u.to_dict() for u in self.undetectable],
-            "errors": dict(self.errors),
-            "groups": [g.to_dict() for g in self.groups],
-            "constants": self.constants.to_dict(),
-            "features": self.features.to_dict(),
-            "identification": {
-                "converged": self.converged, "message": self.message,
-                "source": None if st is None else st.source,
-                "parameters": None if st is None else list(st.names),
-                "prior_rel_std": None if st is None else st.prior_rel_std,
-                "pairing": None if st is None else st.pairing,
-                "pairing_used": self.pairing_used},
-            "pairing": self.pairing,
-            "model_sigma_hz": None if self.model_sigma is None else self.model_sigma.tolist(),
-            "diagnosis_notes": list(self.notes),
-        }
 
 
 # ------------------------------------------------------------------ steps --
@@ -292,96 +161,106 @@ def _families(problem: Features, fw: ForwardModel, p_hat) -> list[str] | None:
         return None
 
 
+def _corrected_pairing(F: GapFit, start: StartEstimate) -> tuple[GapFit, StartEstimate, str]:
+    """(F, start, note): when the discretisation correction at the estimate moves close modes
+    past each other so that the peaks pair better crosswise (:func:`engine.gap.repair.corrected_pairing`),
+    ``F`` re-paired and the constants refitted locally from identify's estimate (the same
+    estimator, prior about identify's start); else unchanged with an empty note."""
+    F2 = corrected_pairing(F, start.params)
+    if F2 is None:
+        return F, start, ""
+    prior = None if start.prior_rel_std is None else Prior(
+        mean={n: start.prior_mean.get(n, start.params[n]) for n in start.names},
+        rel_std={n: start.prior_rel_std for n in start.names})
+    try:
+        est = estimate(F2.blocks(), start.names, dict(start.params), prior=prior, max_iter=30)
+    except (np.linalg.LinAlgError, ValueError):
+        return F, start, ""
+    if not np.all(np.isfinite(est.values)):
+        return F, start, ""
+    before, after = current_selection(F), current_selection(F2)
+    moved = [f"peak {i + 1} mode {a + 1} -> {b + 1}" for i, (a, b) in enumerate(zip(before, after)) if a != b]
+    st = replace(start, params=dict(est.params), std={n: float(v) for n, v in zip(start.names, est.std)},
+                 mode_index=tuple(None if j < 0 else int(j) for j in after), pairing="identify")
+    return F2, st, ("the discretisation correction at the estimate reorders close modes; the peaks are "
+                    "paired by the corrected frequencies (" + "; ".join(moved) + ") and the constants "
+                    "refitted from identify's estimate")
+
+
+def _refit_one(c: Candidate, F: GapFit, base: _ConstantsFit, fl, opts: GapOptions, proposals) -> Candidate:
+    """Candidate ``c`` refitted jointly with the constants (from identify's estimate and, when
+    that is doubtful, from identify's start too), the peaks re-paired under it."""
+    dof = max(base.test["dof"] - 1, 1)
+    try:
+        rf = refit(c.name, c.magnitude_linear, F, base.theta, base.w, base.theta_prior, fl, opts.max_nfev)
+        far = bool(np.any(np.abs(base.theta - base.theta_prior) > math.log(1.5)))
+        if (far or not rf.converged or stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha) \
+                and np.any(base.theta_prior != base.theta):
+            # second start: identify's start values (its estimate may sit in a minimum the
+            # effect made: a constant > 1.5x from its start, or a refit not converged / rejected)
+            try:
+                rf2 = refit(c.name, c.magnitude_linear, F, base.theta_prior, base.w, base.theta_prior, fl,
+                            opts.max_nfev)
+                rf = rf2 if rf2.chi2 < rf.chi2 else rf
+            except RefitError:
+                pass
+        rf = repaired(c.name, rf, F, base.w, base.theta_prior, fl, opts.max_nfev, proposals, c.magnitude_linear)
+        if stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha and rf.chi2 < 0.5 * base.test["chi2"]:
+            # explains much of the gap but fails the test: the mesh correction under the effect?
+            nm = F.fw.n_modal
+            tol = 0.2 * float(np.min(F.sigma_measured[:nm] / F.y[:nm])) if nm else 0.0
+            rf = under_effect(c.name, rf, F, base.w, base.theta_prior, fl, opts.max_nfev, tol)
+        return replace(c, refit=rf)
+    except RefitError as exc:
+        return replace(c, error=str(exc))
+
+
 def _screen_and_refit(problem: Features, F: GapFit, base: _ConstantsFit, fl, opts: GapOptions,
                       progress: Callable[[str, int, int], None] | None, proposals=()) -> list[Candidate]:
-    """Every applicable candidate screened; the top_k detectable ones refitted, the peaks
-    re-paired under each (``proposals``: pairings to try too, with their constants; see
+    """Every applicable candidate screened (quadratic screen when there is a gap); every
+    detectable one whose screen is not conclusively worse than an accepted refit refitted (at
+    most ``max_refits``), then the look-alike partner of the best if the cap left it out; the
+    peaks re-paired under each (``proposals``: pairings to try too, with their constants; see
     :func:`engine.gap.repair.repaired`); ``progress(stage, done, total)`` after each step."""
     Ja = np.vstack([base.J, np.diag(base.w)])     # augmented Jacobian for projections (prior rows)
     names = [n for n in opts.candidates if applies(n, problem)
              and (n not in PLATE_EFFECTS or hasattr(F.fw, "modal_forward_with"))
              and (n not in ANGLE_EFFECTS or not problem.material_obj.isotropic)]
-    total = len(names) + min(opts.top_k, len(names))
+    gap = bool(base.test["significant"])
+    if not gap:         # nothing to attribute: only the effects screened without a new plate model
+        names = [n for n in names if n not in REBUILD]   # (measured, 10 CFRP modes, E1, E2, G12:
+        # ~1 s of a 3.7 s diagnosis; temperature, viscoelastic, the wave effects still report
+        # what the constants would absorb)
+    total = len(names) + (min(opts.max_refits, len(names)) if gap else 0)
     cands = []
     for i, name in enumerate(names):
-        cands.append(screen(name, F, base.p_hat, base.r0, Ja, F.names, opts.detect_sigma))
+        cands.append(screen(name, F, base.p_hat, base.r0, Ja, F.names, opts.detect_sigma, quadratic=gap))
         if progress:
             progress("screen", i + 1, total)
+    if not gap:
+        return cands         # no gap: nothing to attribute (the screen still reports undetectable effects)
     ranked = sorted([c for c in cands if c.error is None and c.detectable], key=lambda c: c.chi2_linear)
-    if not base.test["significant"]:
-        ranked = []          # no gap: nothing to attribute (screening still reports undetectable effects)
     done: dict[str, Candidate] = {}
     best_ok = math.inf      # chi^2 of the best accepted refit so far
-    dof = max(base.test["dof"] - 1, 1)
-    for j, c in enumerate(ranked[:opts.top_k]):
+    for c in ranked:
+        if len(done) >= opts.max_refits:
+            break
         if c.chi2_linear > best_ok + opts.skip_dchi2:
-            continue            # far behind an accepted refit even in the linear estimate: not refitted
-        try:
-            rf = refit(c.name, c.magnitude_linear, F, base.theta, base.w, base.theta_prior, fl, opts.max_nfev)
-            far = bool(np.any(np.abs(base.theta - base.theta_prior) > math.log(1.5)))
-            if (far or not rf.converged or stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha) \
-                    and np.any(base.theta_prior != base.theta):
-                # second start: identify's start values (its estimate may sit in a minimum the
-                # effect made: a constant > 1.5x from its start, or a refit not converged / rejected)
-                try:
-                    rf2 = refit(c.name, c.magnitude_linear, F, base.theta_prior, base.w, base.theta_prior, fl,
-                                opts.max_nfev)
-                    rf = rf2 if rf2.chi2 < rf.chi2 else rf
-                except RefitError:
-                    pass
-            rf = repaired(c.name, rf, F, base.w, base.theta_prior, fl, opts.max_nfev, proposals,
-                          c.magnitude_linear)
-            done[c.name] = replace(c, refit=rf)
-            if stats.chi2.sf(rf.chi2, dof) > opts.accept_alpha:
-                best_ok = min(best_ok, rf.chi2)
-        except RefitError as exc:
-            done[c.name] = replace(c, error=str(exc))
+            continue            # conclusively behind an accepted refit even in the screen: not refitted
+        done[c.name] = _refit_one(c, F, base, fl, opts, proposals)
+        if accepted(done[c.name], base.test, opts.accept_alpha):
+            best_ok = min(best_ok, done[c.name].chi2)
         if progress:
-            progress("refit", len(names) + j + 1, total)
+            progress("refit", len(names) + len(done), total)
+    ok = sorted([c for c in done.values() if accepted(c, base.test, opts.accept_alpha)], key=lambda c: c.cost)
+    if ok:              # the best one's look-alike partners left out by the cap, so that a group is measured
+        by_name = {c.name: c for c in ranked}
+        for pair in LOOKALIKES:
+            if ok[0].name in pair:
+                other = next(iter(pair - {ok[0].name}))
+                if other in by_name and other not in done and by_name[other].chi2_linear <= best_ok + opts.skip_dchi2:
+                    done[other] = _refit_one(by_name[other], F, base, fl, opts, proposals)
     return [done.get(c.name, c) for c in cands]
-
-
-def _verdict(refitted: list[Candidate], test: dict, ho0: float, n: int, opts: GapOptions
-             ) -> tuple[str, list[str], float | None]:
-    """(verdict, confusable set, p-value of the best refit when tested)."""
-    if not test["significant"]:
-        return "none", [], None
-    best = refitted[0] if refitted else None
-    if best is None:
-        return "unattributed", [], None
-    p_best = float(stats.chi2.sf(best.chi2, max(test["dof"] - 1, 1)))
-    better = test["chi2"] - best.chi2 > math.log(n)
-    held_ok = not (best.refit.held_out_after > ho0)
-    if p_best > opts.accept_alpha and better and held_ok:
-        confusable = [c.name for c in refitted[1:]
-                      if c.cost - best.cost < opts.confusable_dchi2]
-        return best.name, confusable, p_best
-    return "unattributed", [], p_best
-
-
-def _ranking(cands: list[Candidate], chi0: float, n: int) -> list[RankedEffect]:
-    """Candidates by chi^2 (refitted first); scores: relative evidence (BIC weights,
-    equal dimension) over refitted + linear, against 'no effect'."""
-    ok = [c for c in cands if c.error is None]
-    lnn = math.log(n)
-    chi_all = {c.name: c.chi2 for c in ok}
-    ref = min(list(chi_all.values()) + [chi0 + lnn])
-    wts = {k_: math.exp(-0.5 * (v - ref)) for k_, v in chi_all.items()}
-    wsum = sum(wts.values()) + math.exp(-0.5 * (chi0 + lnn - ref))
-    out = []
-    for c in sorted(ok, key=lambda c: (c.cost if c.refit is not None else math.inf, c.chi2_linear)):
-        rf = c.refit
-        chi_e = chi_all[c.name]
-        out.append(RankedEffect(
-            name=c.name, magnitude=float(rf.magnitude if rf is not None else c.magnitude_linear),
-            std=None if rf is None else rf.std, unit=c.unit, gap_after=float(math.sqrt(chi_e / n)),
-            score=float(wts[c.name] / wsum), delta_chi2=float(chi0 - chi_e), refitted=rf is not None,
-            held_out_after=None if rf is None else rf.held_out_after, detectable=c.detectable,
-            absorbed_fraction=float(c.absorbed_fraction), bias_in_constants_per_unit=c.bias_per_unit,
-            constants_after=None if rf is None else rf.constants,
-            iterations=None if rf is None else rf.iterations,
-            converged=None if rf is None else rf.converged))
-    return out
 
 
 # -------------------------------------------------------------- diagnosis --
@@ -416,7 +295,9 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     model_sigma, notes = None, pre_notes
     if opts.discretisation and fw.n_modal and forward is None:
         try:
-            ratio, d, note, per_mode = peak_corrections(fw, start.params)
+            md = problem.modal
+            tol = 0.2 * float(np.min(np.asarray(md.sigma_hz, float) / np.asarray(md.frequency_hz, float)))
+            ratio, d, note, per_mode, reordered = peak_corrections(fw, start.params, tol=tol)
             fw.peak_correction = ratio          # the identification's correction: same residuals
             model_sigma = np.concatenate([d, np.zeros(len(F0.y) - fw.n_modal)])
             notes.append(note)
@@ -425,6 +306,11 @@ def diagnose(problem: Features, options: GapOptions | None = None,
     F = GapFit(problem, fw, opts.model_rel_sigma, names=start.names, model_sigma=model_sigma)
     if model_sigma is not None:
         F.mode_correction = per_mode
+        if reordered:
+            F, start, note = _corrected_pairing(F, start)
+            if note:
+                notes.append(note)
+                fw = F.fw
     base = _base(F, start, opts)
     r0, test = base.r0, base.test
     n, chi0 = len(r0), test["chi2"]
@@ -448,12 +334,18 @@ def diagnose(problem: Features, options: GapOptions | None = None,
         # identify's pairing alone 'unattributed' (gap 68 -> 38 at 2.9 g); frequency order alone
         # worse (chi^2 1.8e6); shape-paired, then fixed: 'sensor_mass' 4.99 g, gap 68 -> 0.24
         proposals.append(("shapes", base.theta))
-    cands = _screen_and_refit(problem, F, base, fl, opts, progress, proposals)
-    refitted = sorted([c for c in cands if c.refit is not None], key=lambda c: c.cost)
-    verdict, confusable, p_best = _verdict(refitted, test, ho0, n, opts)
-    if pair is not None and pair.explains and (verdict == "unattributed" or (
-            refitted and pair.chi2 < refitted[0].cost)):
-        verdict, confusable, p_best = "pairing", [], pair.p_value
+    advice = insufficient(problem, n - (0 if F.unexplained is None else int(np.sum(F.unexplained))), F.names)
+    if advice:        # nothing left to judge a gap with: no candidate is tried
+        cands, refitted, verdict, p_best, pair = [], [], "insufficient_data", None, None
+        notes.append(advice[0])
+    else:
+        cands = _screen_and_refit(problem, F, base, fl, opts, progress, proposals)
+        refitted = sorted([c for c in cands if c.refit is not None], key=lambda c: c.cost)
+        verdict, p_best = decide(refitted, test, n, opts.accept_alpha)
+        if pair is not None and pair.explains and (verdict == "unattributed" or (
+                refitted and pair.chi2 < refitted[0].cost)):
+            verdict, p_best = "pairing", pair.p_value
+    grp = group(verdict, refitted, test, opts.accept_alpha, opts.confusable_dchi2)
     chosen = next((c.refit for c in refitted if c.name == verdict), None)
     pairing_used = "identify" if selection is not None else pairing
     if chosen is not None and chosen.selection is not None:
@@ -474,19 +366,22 @@ def diagnose(problem: Features, options: GapOptions | None = None,
         where_names = tuple(pair.findings) + where_names
     after_constants = chosen.constants if chosen is not None else (
         pair.constants if verdict == "pairing" else p_hat)
+    before_std = {n_: float(start.std.get(n_, float("nan"))) for n_ in names}
+    ranked = ranking(cands, chi0, n, p_hat, before_std)
+    notes += [f"under {verdict}: {f}" for e in ranked if e.name == verdict for f in e.flags]
     return GapResult(
         gap=gap,
         where=where_names,
         where_detail=tuple(where),
-        effects=tuple(_ranking(cands, chi0, n)),
+        effects=tuple(ranked),
         verdict=verdict,
-        confusable=tuple([verdict] + confusable) if confusable else (),
+        confusable=grp.effects if grp is not None and len(grp.effects) > 1 else (),
         undetectable=tuple(Undetectable(c.name, float(c.absorbed_fraction), c.unit, c.bias_per_unit)
                            for c in cands if c.error is None and not c.detectable),
         errors={c.name: c.error for c in cands if c.error is not None},
         groups=tuple(table0),
         constants=ConstantsChange(
-            before=p_hat, before_std={n_: float(start.std.get(n_, float("nan"))) for n_ in names},
+            before=p_hat, before_std=before_std,
             after=after_constants,
             relative_change={n_: after_constants[n_] / p_hat[n_] - 1.0 for n_ in names}),
         features=FeatureResiduals(
@@ -496,4 +391,4 @@ def diagnose(problem: Features, options: GapOptions | None = None,
         converged=bool(start.converged), message=start.message,
         start=start, pairing=None if pair is None else pair.to_dict(),
         model_sigma=None if model_sigma is None else model_sigma[:fw.n_modal], notes=tuple(notes),
-        pairing_used=pairing_used)
+        pairing_used=pairing_used, confusable_groups=() if grp is None else (grp,), advice=advice)

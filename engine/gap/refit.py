@@ -10,7 +10,8 @@ columns from :meth:`GapFit.jacobian` at every iterate (analytic modal
 sensitivities; the wave rows, finite differences of SAFE, frozen at the
 start), the effect's column by a forward difference of 0.1 x its typical
 magnitude (towards the inside of the range). ``converged`` is scipy's own
-termination status (>0: ftol/xtol/gtol met; 0: evaluation budget spent). Covariance from the final Gauss-Newton matrix.
+termination status (>0: ftol/xtol/gtol met; 0: evaluation budget spent). Covariance (the
+effect's std and every constant's) from the final Gauss-Newton matrix.
 """
 from __future__ import annotations
 
@@ -56,6 +57,8 @@ class Refit:
     held_out_after: float
     selection: tuple | None = None
     penalty: float = 0.0
+    #: std of each fitted constant (SI) from the same Gauss-Newton covariance
+    constants_std: dict[str, float] | None = None
 
 
 def _unpack(x, names):
@@ -134,9 +137,12 @@ def refit(name: str, magnitude_linear: float, F: GapFit, theta0: np.ndarray, w: 
     Jf = res.jac[:n]
     A = Jf.T @ Jf + np.diag(np.concatenate([w ** 2, [0.0]]))
     try:
-        std = float(math.sqrt(max(np.linalg.inv(A)[k, k], 0.0)))
+        var = np.maximum(np.diag(np.linalg.pinv(A)), 0.0)
+        std = float(math.sqrt(var[k]))
     except np.linalg.LinAlgError:
-        std = float("inf")
+        var, std = np.full(k + 1, np.inf), float("inf")
+    consts = _unpack(np.exp(x[:k]), names)
     return Refit(iterations=int(res.nfev), converged=bool(res.status > 0), magnitude=float(x[k]), std=std,
-                 chi2=float(r @ r), residual=r, constants=_unpack(np.exp(x[:k]), names),
-                 held_out_after=held_out(r, Jf, w, x[:k] - theta_prior, folds))
+                 chi2=float(r @ r), residual=r, constants=consts,
+                 held_out_after=held_out(r, Jf, w, x[:k] - theta_prior, folds),
+                 constants_std={n_: float(consts[n_] * math.sqrt(v)) for n_, v in zip(names, var[:k])})

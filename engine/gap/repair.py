@@ -32,7 +32,7 @@ from .residuals import GapFit
 __all__ = ["Pairing", "current_selection", "state", "tolerance", "most_likely", "with_selection", "shape_paired",
            "pairing_of", "penalty",
            "MAX_ROUNDS", "TAU_RANGE",
-           "repaired", "repair_note"]
+           "repaired", "repair_note", "corrected_pairing"]
 
 #: re-pair / refit rounds per candidate at most
 MAX_ROUNDS = 3
@@ -241,3 +241,32 @@ def repair_note(effect: str, before, after, y) -> str:
             now = "no mode (set aside)" if b < 0 else f"mode {b + 1}"
             diff.append(f"peak {i + 1} ({y[i]:.1f} Hz) {was} -> {now}")
     return f"under {effect} the peaks pair differently from the start: " + "; ".join(diff)
+
+
+def corrected_pairing(F: GapFit, params: Mapping[str, float]) -> GapFit | None:
+    """``F`` re-paired at ``params`` by the most likely pairing with the *corrected* predicted
+    frequencies (``F.mode_correction``: the discretisation correction at the estimate), when that
+    differs from ``F``'s pairing and explains the peaks better (chi^2 plus pairing penalty, both
+    at ``params``); None otherwise. The correction moves close modes past each other (their
+    coarse-mesh order is not their true order), so the order-based or nominal-correction
+    pairing identify used can pair two peaks crosswise (issue 28)."""
+    current = current_selection(F)
+    if current is None or F.mode_correction is None:
+        return None
+    try:
+        r0 = F.residual(params, {})
+        f_pred, vis, tau = state(F, params, {}, r0, current)
+        new = most_likely(F, f_pred, vis, tau)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    n_un = int(np.sum(new.index < 0))
+    if np.array_equal(new.index, current) or n_un > max(MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION * new.index.size):
+        return None
+    F2 = with_selection(F, new.index)
+    try:
+        r2 = F2.residual(params, {})
+    except ValueError:
+        return None
+    y = F.y[:F.fw.n_modal]
+    old_cost = float(r0 @ r0) + penalty(current, f_pred, vis, y, tau).penalty
+    return F2 if float(r2 @ r2) + new.penalty < old_cost and float(r2 @ r2) <= float(r0 @ r0) else None

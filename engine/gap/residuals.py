@@ -53,6 +53,9 @@ class GapFit:
         self.nominal = {n: mat[n] for n in self.names}
         #: peaks identify left unexplained (no residual, no Jacobian row), or None
         self.unexplained = getattr(fw, "unexplained", None)
+        #: the same problem on the discretisation check's finer mesh, built when first needed
+        #: (engine.gap.convergence.under_effect)
+        self.fine_forward = None
 
     def residual(self, params, effects) -> np.ndarray:
         r = (self.fw.predict(params, effects) - self.y) / self.sigma
@@ -109,9 +112,10 @@ class GapFit:
         sigma = self.sigma_measured if raw else self.sigma
         out = []
         if nm:
-            def jac(p, names):
+            def jac(p, names):     # with the discretisation correction, as predict_modal has it
                 f, J = fw.modal_forward().jacobian(dict(p), list(names))
-                return f, J
+                corr = getattr(fw, "peak_correction", None)
+                return (f, J) if corr is None else (f * corr, J * corr[:, None])
             out.append(DataBlock("modal", self.y[:nm], sigma[:nm],
                                  lambda p: fw.predict_modal(p, {}), jac, kind="modal"))
         if len(self.y) > nm:

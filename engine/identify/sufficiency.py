@@ -86,6 +86,17 @@ def datasets_of(blocks, features=None) -> list[DataSet]:
     return out
 
 
+def datasets_of_features(features) -> list[DataSet]:
+    """DataSets of an ``engine.features.Features``: its modal frequencies and each wave set."""
+    out = []
+    if getattr(features, "modal", None) is not None:
+        out.append(DataSet("modal", int(len(features.modal.frequency_hz))))
+    for w in (getattr(features, "waves", None) or ()):
+        f = [float(x) for x in w.frequency_hz if x > 0]
+        out.append(DataSet("waves", len(f), w.mode, float(w.direction_deg), (min(f), max(f)) if f else None))
+    return out
+
+
 def assess(data: Sequence[DataSet], params: Sequence[str]) -> Sufficiency:
     """Count the independent points of ``data`` against the constants ``params`` (module
     docstring)."""
@@ -111,8 +122,9 @@ def assess(data: Sequence[DataSet], params: Sequence[str]) -> Sufficiency:
         if sum(d.n_points for d in waves) < 3 * len(waves):
             help_.append("more independent points per curve: sensors farther from the plate's edges, a longer "
                          "path between the sensors, or a sweep of tone bursts")
-    if not modal and names & {"E1", "E2", "G12", "E", "G"}:
-        help_.append("resonances (hammer hits): E1, E2 and G12 from the modal test")
+    if not modal:
+        help_.append("resonances from a modal test (hammer hits, free-free: 10 or more natural frequencies): "
+                     "E1, E2 and G12")
     elif modal and sum(d.n_points for d in modal) < p + 3:
         help_.append("more resonances: a wider modal band (labid analyze --modal-fmax)")
     if not waves and names & {"G13", "G23", "nu12"}:

@@ -149,6 +149,15 @@ class PlateModel:
             return self._derived(thickness_weights=None)
         return self._derived(thickness_weights=thickness_weights(self.mesh, scale))
 
+    def with_added_mass(self, data: np.ndarray) -> "PlateModel":
+        """The same model plus mass ``data`` given on the sparse pattern's entries (the
+        ``m_add`` layout, kg and kg m^2: e.g. a distributed mass built once and scaled)."""
+        data = np.asarray(data, float)
+        nz = np.flatnonzero(data)
+        return PlateModel(self.laminate, self.mesh, self.shear_factor,
+                          _parts=(self._Ke, self._Me, self._pat, self._maps), k_add=self._k_add,
+                          m_add=self._m_add.plus(nz, data[nz]), _cache=self._cache, thickness_weights=self._tw)
+
     def with_point_masses(self, masses: Iterable[Sequence[float]]) -> "PlateModel":
         """Add point masses (x, y, m) or (x, y, m, Ix, Iy): m in kg on u0, v0, w0;
         rotary inertias in kg m^2, Ix about the x axis (acts on by), Iy about y (on bx)."""

@@ -4,7 +4,8 @@ Result (``--json``): ``gap`` {before, after, held_out_before, held_out_after,
 chi2..., significant} (rms whitened residuals, 1 = noise level), ``where``
 (groups of features carrying the gap), ``effects`` (ranked ``{name,
 magnitude, unit, gap_after, score, ...}``), ``verdict`` (an effect name,
-``"none"`` or ``"unattributed"``), plus ``confusable``, ``undetectable``
+``"none"``, ``"unattributed"``, ``"pairing"`` or ``"insufficient_data"``), plus ``confusable``
+and ``confusable_groups`` (what separates them), ``advice`` (what to add), ``undetectable``
 (effects the constants absorb, with the bias they put into them), ``constants``
 (before/after) and per-feature residuals. ``--plot PNG`` draws where the gap lies.
 
@@ -111,7 +112,8 @@ def _print(res: dict, out) -> None:
     g, ident = res["gap"], res["identification"]
     v = res["verdict"]
     what = {"none": "no significant gap", "unattributed": "a gap no candidate explains",
-            "pairing": "the peaks are paired with the wrong modes"}.get(v, f"{v} explains the gap")
+            "pairing": "the peaks are paired with the wrong modes",
+            "insufficient_data": "too few features to tell a gap from the fit"}.get(v, f"{v} explains the gap")
     out.write(f"verdict: {v} ({what}; chi^2 {g['chi2_before']:.1f} vs threshold {g['threshold_chi2']:.1f}, "
               f"p = {g['p_value_before']:.2g})\n")
     out.write(f"  gap {g['before']:.2f} -> {g['after']:.2f} (rms residual/sigma, 1 = noise); held-out "
@@ -120,8 +122,14 @@ def _print(res: dict, out) -> None:
               f"({'converged' if ident['converged'] else 'NOT converged'})\n")
     for e in res["effects"][:3]:
         mag = f"{e['magnitude']:.4g}" + (f" +- {e['std']:.2g}" if e.get("std") else "")
-        tag = "refitted" if e["refitted"] else "linear"
+        tag = "refitted" if e["refitted"] else "screened"
         out.write(f"  {e['name']:18s} {mag} {e['unit']:4s} gap_after {e['gap_after']:.2f} "
                   f"score {e['score']:.2f} ({tag})\n")
+    for grp in res.get("confusable_groups") or []:    # issue 28: look-alikes and what separates them
+        out.write(f"  confusable: {' ~ '.join(grp['effects'] + grp['outside_library'])}\n")
+        for how in grp["separate_by"]:
+            out.write(f"    separate: {how}\n")
+    for i, a in enumerate(res.get("advice") or []):
+        out.write(f"  {'too few' if i == 0 else 'add'}: {a}\n")
     for w in res["where"][:6]:
         out.write(f"  where: {w}\n")

@@ -103,7 +103,7 @@ def test_local_stiffness_loss_is_unattributed():
 @pytest.mark.slow
 def test_timing_offset_is_found_from_group_velocities():
     case = draw_case(15, "timing_offset", wave_sets=(("A0", 0.0, 6), ("S0", 0.0, 5)), mesh=MESH)
-    res = _diagnose(case, top_k=2)
+    res = _diagnose(case, max_refits=2)
     assert res["verdict"] == "timing_offset"
     e = res["effects"][0]
     assert e["unit"] == "s" and e["magnitude"] == pytest.approx(case.magnitude, rel=0.15)
