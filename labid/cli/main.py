@@ -4,10 +4,15 @@ Exit codes: 0 success, 2 user error (one line on stderr, no traceback),
 1 internal failure, 3 a fit inconsistent with its data under ``--strict``,
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM, handled like Ctrl-C).
 Every failure is mapped here (``failure_line``): a ``UserError``, a storage error
-(disk full, read-only directory, permissions), an engine error on unphysical input
-or an out-of-memory request is one line, exit 2; anything else is an internal
-failure: exit 1, the traceback written to a file and one line saying where
-(``LABID_DEBUG=1`` prints it too). Each command lives in ``labid/cli/<name>.py`` (``import_.py``
+(disk full, file-size limit, read-only directory, permissions), an engine error on
+unphysical input or an out-of-memory request is one line, exit 2 (a value echoed in it
+cut to 80 characters); anything else is an internal
+failure: exit 1, the traceback written to a file (``mkstemp``: a new file under an
+unpredictable name) and one line saying where (``LABID_DEBUG=1`` prints it too).
+SIGXFSZ is ignored, so that a file-size limit (``ulimit -f``) is a write error the
+commands report, not a kill. When an HDF5 file could not be written
+(``labid.store.space.poisoned``), the process ends without running the HDF5 library's
+exit handlers, which would crash on it. Each command lives in ``labid/cli/<name>.py`` (``import_.py``
 for ``labid import``) and exposes
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> dict``.
 The returned dict is the ``--json`` result.
@@ -31,7 +36,7 @@ import traceback
 
 from ..base import progress, threads
 from .options import write_json
-from ..base.errors import UserError
+from ..base.errors import UserError, clip_values
 
 #: every command with its one-line help, in the order ``labid --help`` lists them
 #: (each module's ``register`` uses the same line; tests/test_cli.py checks it)
@@ -117,13 +122,13 @@ def crash_report(command: str, exc: BaseException) -> str | None:
     text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
     if os.environ.get("LABID_DEBUG"):
         sys.stderr.write(text)
-    name = f"labid-crash-{command}-{time.strftime('%Y%m%dT%H%M%S')}-{os.getpid()}.txt"
+    prefix = f"labid-crash-{command}-{time.strftime('%Y%m%dT%H%M%S')}-"
     for d in (os.environ.get("LABID_CRASH_DIR"), tempfile.gettempdir()):
         if not d:
             continue
-        try:
-            path = os.path.join(d, name)
-            with open(path, "w", encoding="utf-8") as fh:
+        try:    # O_CREAT | O_EXCL under an unpredictable name: never through a planted link
+            fd, path = tempfile.mkstemp(prefix=prefix, suffix=".txt", dir=d)
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
                 fh.write(f"labid {command}: internal error\nargv: {sys.argv!r}\n\n{text}")
             return path
         except OSError:
@@ -134,22 +139,44 @@ def crash_report(command: str, exc: BaseException) -> str | None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``labid ARGV``; the exit code. ``argv`` None: the process's own arguments, and
+    this call owns the process (it may end it at once: ``_exit_if_poisoned``)."""
+    owner = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     command = argv[0] if argv and argv[0] in COMMANDS else "?"
     # a usage error is one line and SystemExit(2), --help SystemExit(0) (argparse's way)
     args = build_parser(command if command != "?" else None).parse_args(argv)
-    previous = None
+    previous = {}
+    for sig, handler in ((signal.SIGTERM, _on_sigterm), (getattr(signal, "SIGXFSZ", None), signal.SIG_IGN)):
+        if sig is None:
+            continue
+        try:
+            previous[sig] = signal.signal(sig, handler)
+        except ValueError:                          # not the main thread: leave signals alone
+            pass
     try:
-        previous = signal.signal(signal.SIGTERM, _on_sigterm)
-    except ValueError:                              # not the main thread: leave signals alone
-        previous = None
-    try:
-        return _run(args)
+        rc = _run(args)
     except Terminated:                              # arrived outside the command's own handling
-        return 143
+        rc = 143
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if owner:
+        _exit_if_poisoned(rc)
+    return rc
+
+
+def _exit_if_poisoned(rc: int) -> None:
+    """End the process now (``os._exit``) when an HDF5 file of it failed a write: the
+    library's exit handlers would try to close that file again and crash (SIGSEGV)."""
+    space = sys.modules.get("labid.store.space")
+    if space is not None and space.poisoned():
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):
+                pass
+        os._exit(rc)
 
 
 class _PipeSafe:
@@ -217,6 +244,7 @@ def _run_command(args) -> int:
         line = failure_line(e)
         if line is not None:
             line = " ".join(line.split())            # one line, whatever the message held
+            line = line if isinstance(e, UserError) else clip_values(line)   # UserError clips its own
             sys.stderr.write(f"labid {args.command}: error: {line}\n")
             return 2
         where = crash_report(args.command, e)

@@ -28,11 +28,17 @@ rows past it (a shot cut short) are dropped on reopening.
 
 One writer at a time (issue 15): an ``"a"`` open takes the advisory lock
 ``RUN.h5.lock`` (``labid.store.lock``) and a second writer is refused in one line
-naming the holder. Results (``write_group``) are written into a copy of the file
-that replaces it atomically (``os.replace``) once complete and synced: a kill at
-any moment leaves either the old file or the new one, never a half-written
-results group. Under the lock, stale temporary files of a killed writer
-(``.new``, ``.repair``, ``.results``, ``.unlocked``) are removed.
+naming the holder (the same file under another name too). Results (``write_group``)
+are written into a copy of the file that replaces it atomically (``os.replace``) once
+complete and synced: a kill at any moment leaves either the old file or the new one,
+never a half-written results group. Temporary files are made by ``mkstemp`` beside
+the run (``.RUN.h5.XXXXXXXX.new``...); under the lock, stale ones of a killed writer
+are removed. A run path that is a symbolic link is refused for writing (labid never
+writes through a link it did not create).
+
+Full disk (issue 27): every HDF5 write is preceded by a reservation of the bytes it
+needs (``labid.store.space``): a full disk or a file-size limit refuses the shot or the
+result in one line before HDF5 is touched; the committed shots are kept.
 
 A ``"r"`` open never writes, repairs or copies (``labid.store.readonly``): it
 reads plainly, through SWMR (a live writer), or through a view with the flags a
@@ -43,8 +49,10 @@ A damaged file (not HDF5, bit flips, missing groups, bad attributes) is a
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import re
 import time
 import tomllib
 from dataclasses import asdict
@@ -57,17 +65,21 @@ import numpy as np
 
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
+from ..base.atomic import temp_beside
 from ..base.errors import UserError
 from ..base.jsonio import to_jsonable
 from .h5repair import is_consistency_flag_error, repair
-from .lock import WriterLock
+from .lock import WriterLock, relock
 from .readonly import open_read_only
 from .tables import read_records
-from .tree import decode_result, json_default, read_tree, replace_group, write_tree
-from .validate import check_run, damaged, reading
+from .space import is_write_failure, poison, reserved, trim_file, write_failed
+from .tree import decode_result, json_default, not_written, read_tree, replace_group, write_tree
+from .schema import check_result
+from .validate import TABLES, check_run, damaged, reading
 
 #: suffixes of the temporary files a writer makes beside the run (removed under the lock)
 TEMP_SUFFIXES = (".new", ".repair", ".results", ".unlocked")
+_STRUCTURE_BYTES = 64 << 10      # reserved for a structure change (tables, configuration)
 
 SCHEMA = 1
 KINDS = ("hammer", "wave")
@@ -123,6 +135,10 @@ class RunStore:
                     raise
                 raise damaged(self.path, e) from None
             return
+        if self.path.is_symlink():
+            raise UserError(f"a symbolic link (to {os.readlink(self.path)!r}); expected the run file itself "
+                            "(labid never writes through a link it did not create: give the file's own "
+                            "path)", file=str(self.path))
         if self.path.exists() and not self.path.is_file():
             raise UserError("not a regular file; expected a run file (HDF5)", file=str(self.path))
         try:
@@ -145,21 +161,56 @@ class RunStore:
             self._f = self._open_append()
             self._check_schema()
             check_run(self._f, str(self.path))
-            self._drop_uncommitted()
+            with self._writing("opening the run"):
+                self._drop_uncommitted()
         else:                      # created complete under a temporary name, then renamed
-            tmp = self.path.with_name(self.path.name + ".new")
+            tmp = temp_beside(self.path, ".new")
             try:
-                with h5py.File(tmp, "w", libver="latest") as f:
-                    self._init(f, self.path.name)
+                f = h5py.File(tmp, "w", libver="latest", locking=False)
+                try:
+                    with reserved(f, _STRUCTURE_BYTES, self.path, "creating the run file", trim=False):
+                        self._init(f, self.path.name)
+                        f.flush()
+                        f.close()
+                except BaseException as e:
+                    poison(f)              # never closed after a failure: HDF5 may not survive it
+                    if is_write_failure(e):
+                        raise write_failed(self.path, e, "creating the run file") from None
+                    raise
+                trim_file(tmp)
                 os.replace(tmp, self.path)
             finally:
                 tmp.unlink(missing_ok=True)
+            relock(self.path)
             self._f = h5py.File(self.path, "a", libver="latest", locking=False)
 
     def _remove_stale(self) -> None:
-        """Temporary files a killed writer left beside the run (we hold the lock: none is live)."""
-        for suffix in TEMP_SUFFIXES:
-            self.path.with_name(self.path.name + suffix).unlink(missing_ok=True)
+        """Temporary files a killed writer left beside the run (we hold the lock: none is live):
+        ``.RUN.h5.XXXXXXXX.results`` and the like (``temp_beside``), and the fixed names of
+        earlier versions (``RUN.h5.results``...). Unlinking never follows a link."""
+        name = re.escape(f".{self.path.name}.") + r"[a-z0-9_]{8}(" + "|".join(
+            re.escape(s) for s in TEMP_SUFFIXES) + ")"
+        old = {self.path.name + s for s in TEMP_SUFFIXES}
+        for p in self.path.parent.iterdir():
+            if p.name in old or re.fullmatch(name, p.name):
+                with contextlib.suppress(OSError):
+                    p.unlink()
+
+    @contextlib.contextmanager
+    def _writing(self, what: str):
+        """Context of HDF5 writes: one that failed (a full disk despite the reservation)
+        leaves the file unclosable: its objects are kept alive (``space.poison``), the lock
+        held until the process ends, and the failure is one ``UserError``."""
+        try:
+            yield
+        except UserError:
+            raise
+        except BaseException as e:
+            if not is_write_failure(e):
+                raise
+            poison(self._f, getattr(self, "_handles", None), self._lock)
+            self._f, self._handles, self._lock = None, (None,), None
+            raise write_failed(self.path, e, what) from None
 
     @staticmethod
     def _init(f: h5py.File, name: str) -> None:
@@ -186,6 +237,7 @@ class RunStore:
             if not is_consistency_flag_error(e):
                 raise damaged(self.path, e) from None
         repair(self.path, open_read_only)
+        relock(self.path)
         return h5py.File(self.path, "a", libver="latest", locking=False)
 
     def _check_schema(self) -> None:
@@ -267,25 +319,34 @@ class RunStore:
                                     "expected the same configuration to resume (or a new --out file)",
                                     file=str(self.path), key=f"config/{key}")
             return
-        f = self._normal()
-        cfg = f["config"]
-        for key, text in (("specimen_toml", specimen_toml), ("rig_toml", rig_toml)):
-            ds = cfg.create_dataset(key, data=text, dtype=h5py.string_dtype())
-            ds.attrs["mime_type"] = "application/toml"
-        for key, text in (("specimen", specimen_toml), ("rig", rig_toml)):
-            try:
-                parsed = tomllib.loads(text)
-            except tomllib.TOMLDecodeError:
-                parsed = {}
-            write_tree(cfg.create_group(key), parsed)
-        f.flush()
+        with self._structure("storing the configuration", 4 * (len(specimen_toml) + len(rig_toml))) as f:
+            cfg = f["config"]
+            for key, text in (("specimen_toml", specimen_toml), ("rig_toml", rig_toml)):
+                ds = cfg.create_dataset(key, data=text, dtype=h5py.string_dtype())
+                ds.attrs["mime_type"] = "application/toml"
+            for key, text in (("specimen", specimen_toml), ("rig", rig_toml)):
+                try:
+                    parsed = tomllib.loads(text)
+                except tomllib.TOMLDecodeError:
+                    parsed = {}
+                write_tree(cfg.create_group(key), parsed)
+            f.flush()
 
     def write_config_text(self, name: str, text: str) -> None:
         """Store or replace the text ``/config/<name>`` (e.g. ``calibration_csv``, the calibration sheet)."""
         if self.config_text(name) != text:
-            self._normal()["config"].pop(name, None)
-            self._f["config"][name] = text
-            self._f.flush()
+            with self._structure(f"storing /config/{name}", 2 * len(text)) as f:
+                f["config"].pop(name, None)
+                f["config"][name] = text
+                f.flush()
+
+    @contextlib.contextmanager
+    def _structure(self, what: str, nbytes: int = 0):
+        """Context of a structure change in normal mode: the file (``_normal``), with
+        ``nbytes`` reserved and write failures made one line (``_writing``)."""
+        f = self._normal()
+        with self._writing(what), reserved(f, nbytes + _STRUCTURE_BYTES, self.path, what):
+            yield f
 
     def config_text(self, name: str) -> str:
         """The text ``/config/<name>`` ('' if absent)."""
@@ -317,6 +378,10 @@ class RunStore:
         to better than half a step: ``labid.workflows.acquisition.sample_dtype``)."""
         if kind not in KINDS:
             raise ValueError(f"shot kind {kind!r}: expected one of {KINDS}")
+        for c in channels:
+            if c.name in TABLES or "/" in c.name or c.name.strip(".") == "":
+                raise UserError(f"channel name {c.name!r}: a name the run file cannot hold (no '/', not one of "
+                                f"{list(TABLES)})", file=str(self.path), key=f"shots/{kind}")
         shots = self._f["shots"]
         if kind in shots:
             g = shots[kind]
@@ -329,7 +394,12 @@ class RunStore:
                                 "expected the same rig to resume (or a new --out file)",
                                 file=str(self.path), key=f"shots/{kind}")
             return
-        f = self._normal()
+        with self._structure(f"creating the {kind} shot table", 4096 * len(channels)) as f:
+            self._create_table(f, kind, channels, timing, trigger, dtype)
+
+    @staticmethod
+    def _create_table(f: h5py.File, kind: str, channels, timing: Timing, trigger: Trigger | None,
+                      dtype: str) -> None:
         g = f["shots"].create_group(kind)
         g.attrs["NX_class"] = "NXdata"
         g.attrs["kind"] = kind
@@ -369,21 +439,29 @@ class RunStore:
             raise UserError("run file opened read-only", file=str(self.path))
         if kind not in self._f["shots"]:
             self.declare(kind, record.channels, record.timing, record.trigger)
-        f = self._swmr_on()
-        g, cols = self._table(kind)
+        with self._writing(f"writing a {kind} shot"):
+            f = self._swmr_on()
+            g, cols = self._table(kind)
+            names = [c.name for c in record.channels]
+            if cols != names:
+                raise UserError(f"record channels {names} differ from the recorded table",
+                                file=str(self.path), key=f"shots/{kind}")
+            meta = json.dumps(record.meta, default=json_default).encode()
+            if len(meta) > _META_LEN:
+                raise ValueError(f"record meta too long ({len(meta)} > {_META_LEN} bytes)")
+            row = {c: np.asarray(record.data[c], dtype=g[c].dtype) for c in names}
+            for c, arr in row.items():           # every check before the first write
+                if arr.shape != (g[c].shape[1],):
+                    raise ValueError(f"channel {c}: {arr.shape[0]} samples, table has {g[c].shape[1]}")
+            nbytes = sum(a.nbytes for a in row.values())
+            with reserved(f, nbytes * 1.1 + _META_LEN, self.path, f"the {kind} shot"):
+                return self._append(f, g, row, meta, record, kind)
+
+    def _append(self, f: h5py.File, g: dict, row: dict, meta: bytes, record: Record, kind: str) -> str:
         n = g["committed"].shape[0]
-        names = [c.name for c in record.channels]
-        if cols != names:
-            raise UserError(f"record channels {names} differ from the recorded table",
-                            file=str(self.path), key=f"shots/{kind}")
-        meta = json.dumps(record.meta, default=json_default).encode()
-        if len(meta) > _META_LEN:
-            raise ValueError(f"record meta too long ({len(meta)} > {_META_LEN} bytes)")
-        row = {c: np.asarray(record.data[c], dtype=g[c].dtype) for c in names}
+        names = list(row)
         for c, arr in row.items():
             ds = g[c]
-            if arr.shape != (ds.shape[1],):
-                raise ValueError(f"channel {c}: {arr.shape[0]} samples, table has {ds.shape[1]}")
             ds.resize(n + 1, axis=0)
             ds[n] = arr
         for name, val in (("timestamp", float(record.timestamp)),
@@ -461,18 +539,20 @@ class RunStore:
         """Write a nested dict (arrays, scalars, strings, dicts) under ``/results/<path>``,
         replacing any previous content of that group.
 
-        Crash-safe: written into a copy of the run (``RUN.h5.results``), synced, then
-        renamed over it; a kill at any moment leaves the earlier results intact.
-        ``UserError`` naming the file when the disk is full or read-only (the run
-        file is unchanged)."""
-        self._normal()
-        self._handles = (None,)
-        self._f.flush()
-        self._f.close()
+        Crash-safe: written into a copy of the run (``.RUN.h5.XXXXXXXX.results``), synced,
+        then renamed over it; a kill at any moment leaves the earlier results intact.
+        ``UserError`` naming the file when the disk is full or read-only, or the run is
+        damaged (the run file is unchanged)."""
+        with self._writing("closing the run before storing a result"):
+            self._normal()
+            self._handles = (None,)
+            self._f.flush()
+            self._f.close()
         self._f = None
         try:
             replace_group(self.path, f"results/{path.strip('/')}", data)
         finally:
+            relock(self.path)
             self._f = h5py.File(self.path, "a", libver="latest", locking=False)
 
     def write_result(self, path: str, data: dict) -> None:
@@ -483,15 +563,20 @@ class RunStore:
         try:
             self.write_group(path, {**data, "json": text})
         except (ValueError, TypeError):
-            self.write_group(path, {"json": text})
+            try:
+                self.write_group(path, {"json": text})
+            except (ValueError, TypeError) as e:     # even one string does not go in: damaged
+                raise not_written(self.path, e) from None
 
     def read_group(self, path: str) -> dict:
         """The nested dict written by ``write_group`` (arrays as numpy, strings as str)."""
         full = f"results/{path.strip('/')}"
-        if full not in self._f:
-            raise KeyError(f"no results group {path!r} in {self.path}")
         with self._reading():
-            return read_tree(self._f[full])
+            tree = read_tree(self._f[full]) if full in self._f else None
+        if tree is None:
+            raise KeyError(f"no results group {path!r} in {self.path}")
+        check_result(path.strip("/"), decode_result(tree), str(self.path))
+        return tree
 
     def read_result(self, path: str) -> Any:
         """The result under ``/results/<path>`` as ``write_result`` wrote it: its JSON copy
