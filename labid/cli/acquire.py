@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from .. import services
-from .options import add_json_option, write_json
+from .options import MAX_SEED, MAX_SHOTS, add_json_option, count, write_json
 from ..base.errors import UserError
 from ..inputs.rig import load_rig
 from ..inputs.specimen import load_specimen
@@ -28,11 +28,14 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, metavar="RUN.h5", help="run file (created or appended to)")
     p.add_argument("--backend", choices=("mock", "nidaqmx"), default="mock",
                    help="simulated rig (mock, default) or NI-DAQmx hardware")
-    p.add_argument("--hits", type=int, default=None, metavar="N", help="hammer hits (rig default)")
-    p.add_argument("--waves", type=int, default=None, metavar="M", help="wave shots (rig default)")
+    p.add_argument("--hits", type=count(MAX_SHOTS, "a number of hits"), default=None, metavar="N",
+                   help="hammer hits (rig default)")
+    p.add_argument("--waves", type=count(MAX_SHOTS, "a number of wave shots"), default=None, metavar="M",
+                   help="wave shots (rig default)")
     p.add_argument("--total", action="store_true",
                    help="N and M count the shots already in RUN.h5 (resume to the planned size)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed of the simulated rig")
+    p.add_argument("--seed", type=count(MAX_SEED, "a seed"), default=0, metavar="S",
+                   help="random seed of the simulated rig")
     p.add_argument("--effects", default="", metavar="NAME=V,..",
                    help="unmodelled effects injected into the simulated rig, e.g. "
                         "'sensor_mass=0.003,temperature=10' (CONTRACT effect names, SI units)")

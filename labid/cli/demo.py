@@ -25,7 +25,7 @@ from ..workflows.diagnosis import plot_gap
 from ..base.errors import UserError
 from ..report.certificate import write_report
 from ..inputs.specimen import load_specimen
-from .options import add_json_option
+from .options import MAX_SEED, MAX_SHOTS, add_json_option, count
 
 DATASETS = ("modal", "waves", "combined")
 #: the identification starts from datasheet values (issue 12): 17-22 % below the simulated
@@ -181,9 +181,11 @@ def run_demo(out_dir: str | Path = "demo_out", *, seed: int = 0, hits: int | Non
 def register(sub) -> None:
     p = sub.add_parser("demo", help="the whole job end to end on the simulated rig")
     p.add_argument("--out", default="demo_out", metavar="DIR", help="output folder (default demo_out)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulated rig")
-    p.add_argument("--hits", type=int, default=None, help="hammer hits (default: the rig file's)")
-    p.add_argument("--waves", type=int, default=None, help="wave shots (default: the rig file's)")
+    p.add_argument("--seed", type=count(MAX_SEED, "a seed"), default=0, help="seed of the simulated rig")
+    p.add_argument("--hits", type=count(MAX_SHOTS, "a number of hits"), default=None,
+                   help="hammer hits (default: the rig file's)")
+    p.add_argument("--waves", type=count(MAX_SHOTS, "a number of wave shots"), default=None,
+                   help="wave shots (default: the rig file's)")
     add_json_option(p)
     p.set_defaults(func=run)
 

@@ -22,7 +22,7 @@ import sys
 from engine.gap import GapOptions
 
 from .. import services
-from .options import add_json_option
+from .options import add_json_option, bounded
 from ..workflows.diagnosis import load_features, plot_gap, run_diagnosis
 from ..base.errors import UserError
 from ..inputs.files import read_json_file
@@ -34,13 +34,13 @@ def register(sub) -> None:
                        description=__doc__.splitlines()[0])
     p.add_argument("features", metavar="FEATURES.json", help="measured features (CONTRACT section 2)")
     p.add_argument("--plot", metavar="PNG", help="write a figure of where the gap lies")
-    p.add_argument("--alpha", type=float, default=0.01,
+    p.add_argument("--alpha", type=bounded(float, 0.0, 0.5, "a false-alarm rate"), default=0.01,
                    help="false-alarm rate of the chi^2 gap test (default 0.01)")
     p.add_argument("--csv", metavar="DIR", help="also write the diagnosis tables as DIR/diagnosis_*.csv")
     p.add_argument("--params", metavar="P1,P2,..",
                    help="constants identified before the diagnosis (as labid identify --params)")
     p.add_argument("--start", metavar="P=V,..", help="initial values in SI units (as labid identify --start)")
-    p.add_argument("--prior", type=float, default=None, metavar="S",
+    p.add_argument("--prior", type=bounded(float, 0.0, 1e3, "a positive prior std"), default=None, metavar="S",
                    help="prior std of log(p) about the start (as labid identify --prior; default none)")
     p.add_argument("--estimate", metavar="IDENTIFY.json",
                    help="start from this labid identify --json result of the same features (and the same "

@@ -35,7 +35,7 @@ import time
 import traceback
 
 from ..base import progress, threads
-from .options import write_json
+from .options import bounded, cpu_count, write_json
 from ..base.errors import UserError, clip_values
 
 #: every command with its one-line help, in the order ``labid --help`` lists them
@@ -57,8 +57,8 @@ ALL = "*"
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit 2
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
+    def error(self, message: str) -> None:  # one line, exit 2, a value echoed cut to 80 characters
+        sys.stderr.write(f"{self.prog}: error: {clip_values(' '.join(message.split()))}\n")
         raise SystemExit(2)
 
 
@@ -80,7 +80,8 @@ def build_parser(load: str | None = ALL) -> argparse.ArgumentParser:
         else:
             sub.add_parser(name, help=help_line, add_help=False)
     for p in sub.choices.values():
-        p.add_argument("--threads", type=int, default=None, metavar="N",
+        p.add_argument("--threads", type=bounded(int, 1, cpu_count, "a number of threads (at most the CPU count)"),
+                       default=None, metavar="N",
                        help="BLAS/OpenMP threads per process (default 1, or $LABID_THREADS; "
                             "OMP_NUM_THREADS and the like set by you are respected)")
         p.add_argument("--quiet", "-q", action="store_true",
