@@ -90,6 +90,8 @@ def run(args) -> dict:
     w.write(f"recorded {rec['hammer']} hammer and {rec['wave']} wave shots "
             f"into {args.out} ({summary['in_file']['hammer']} + {summary['in_file']['wave']} "
             "in the file)\n")
+    if stop["flag"]:            # Ctrl-C during the last shot: that shot is kept, the exit code says 130
+        summary["interrupted"] = True
     if not summary["interrupted"]:
         w.write(f"next: labid analyze {args.out}\n")
     if summary["interrupted"]:

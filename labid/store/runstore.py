@@ -52,8 +52,6 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import re
-import time
 import tomllib
 from dataclasses import asdict
 from importlib.metadata import PackageNotFoundError, version
@@ -71,8 +69,8 @@ from ..base.jsonio import to_jsonable
 from .h5repair import is_consistency_flag_error, repair
 from .lock import WriterLock, relock
 from .readonly import open_read_only
-from .tables import read_records
-from .space import is_write_failure, poison, reserved, trim_file, write_failed
+from .tables import append_row, create_table, drop_uncommitted, init_file, read_records
+from .space import is_write_failure, poison, remove_stale, reserved, trim_file, write_failed
 from .tree import decode_result, json_default, not_written, read_tree, replace_group, write_tree
 from .schema import check_result
 from .validate import TABLES, check_run, damaged, reading
@@ -156,20 +154,20 @@ class RunStore:
             raise damaged(self.path, e) from None
 
     def _open_writer(self) -> None:
-        self._remove_stale()
+        remove_stale(self.path, TEMP_SUFFIXES)
         if self.path.exists():
             self._f = self._open_append()
             self._check_schema()
             check_run(self._f, str(self.path))
             with self._writing("opening the run"):
-                self._drop_uncommitted()
+                drop_uncommitted(self._f)
         else:                      # created complete under a temporary name, then renamed
             tmp = temp_beside(self.path, ".new")
             try:
                 f = h5py.File(tmp, "w", libver="latest", locking=False)
                 try:
                     with reserved(f, _STRUCTURE_BYTES, self.path, "creating the run file", trim=False):
-                        self._init(f, self.path.name)
+                        init_file(f, self.path.name, SCHEMA, f"labid {software_version()}")
                         f.flush()
                         f.close()
                 except BaseException as e:
@@ -183,18 +181,6 @@ class RunStore:
                 tmp.unlink(missing_ok=True)
             relock(self.path)
             self._f = h5py.File(self.path, "a", libver="latest", locking=False)
-
-    def _remove_stale(self) -> None:
-        """Temporary files a killed writer left beside the run (we hold the lock: none is live):
-        ``.RUN.h5.XXXXXXXX.results`` and the like (``temp_beside``), and the fixed names of
-        earlier versions (``RUN.h5.results``...). Unlinking never follows a link."""
-        name = re.escape(f".{self.path.name}.") + r"[a-z0-9_]{8}(" + "|".join(
-            re.escape(s) for s in TEMP_SUFFIXES) + ")"
-        old = {self.path.name + s for s in TEMP_SUFFIXES}
-        for p in self.path.parent.iterdir():
-            if p.name in old or re.fullmatch(name, p.name):
-                with contextlib.suppress(OSError):
-                    p.unlink()
 
     @contextlib.contextmanager
     def _writing(self, what: str):
@@ -211,21 +197,6 @@ class RunStore:
             poison(self._f, getattr(self, "_handles", None), self._lock)
             self._f, self._handles, self._lock = None, (None,), None
             raise write_failed(self.path, e, what) from None
-
-    @staticmethod
-    def _init(f: h5py.File, name: str) -> None:
-        """Root attributes and top-level groups of a new run file."""
-        a = f.attrs
-        a["NX_class"] = "NXroot"
-        a["labid_schema"] = SCHEMA
-        a["creator"] = f"labid {software_version()}"
-        a["file_name"] = name
-        a["file_time"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-        a["HDF5_Version"] = h5py.version.hdf5_version
-        a["h5py_version"] = h5py.version.version
-        for name, cls in (("config", "NXcollection"), ("shots", "NXentry"),
-                          ("results", "NXcollection")):
-            f.create_group(name).attrs["NX_class"] = cls
 
     # -- opening -------------------------------------------------------
     def _open_append(self) -> h5py.File:
@@ -249,16 +220,6 @@ class RunStore:
         if not ok:
             raise UserError(f"labid_schema {v!r}: expected a labid run file with schema <= {SCHEMA}",
                             file=str(self.path))
-
-    def _drop_uncommitted(self) -> None:
-        """Truncate every table to its committed rows (a shot cut short by a kill)."""
-        for kind in list(self._f["shots"]):
-            g = self._f["shots"][kind]
-            n = g["committed"].shape[0]
-            for name, ds in g.items():
-                if ds.maxshape[0] is None and ds.shape[0] != n:
-                    ds.resize(n, axis=0)
-        self._f.flush()
 
     def _normal(self) -> h5py.File:
         """The file in normal (structure-changing) mode."""
@@ -395,40 +356,7 @@ class RunStore:
                                 file=str(self.path), key=f"shots/{kind}")
             return
         with self._structure(f"creating the {kind} shot table", 4096 * len(channels)) as f:
-            self._create_table(f, kind, channels, timing, trigger, dtype)
-
-    @staticmethod
-    def _create_table(f: h5py.File, kind: str, channels, timing: Timing, trigger: Trigger | None,
-                      dtype: str) -> None:
-        g = f["shots"].create_group(kind)
-        g.attrs["NX_class"] = "NXdata"
-        g.attrs["kind"] = kind
-        g.attrs["rate_hz"] = float(timing.rate_hz)
-        g.attrs["rate_hz_units"] = "Hz"
-        g.attrs["samples"] = int(timing.samples)
-        g.attrs["pretrigger"] = int(timing.pretrigger)
-        g.attrs["channels"] = json.dumps([asdict(c) for c in channels])
-        g.attrs["trigger"] = json.dumps(asdict(trigger) if trigger else None)
-        g.attrs["signal"] = channels[0].name
-        n = timing.samples
-        for c in channels:
-            ds = g.create_dataset(c.name, shape=(0, n), maxshape=(None, n), dtype=dtype,
-                                  chunks=(1, n), compression="gzip", compression_opts=1,
-                                  shuffle=True)
-            ds.attrs.update(units="V", sensitivity=c.sensitivity, physical_units=c.unit,
-                            kind=c.kind, physical_channel=c.physical, range_v=c.range_v,
-                            coupling=c.coupling, long_name=f"{c.name} ({c.kind}) at the ADC input")
-        ncol = len(channels)
-        specs = {"timestamp": ("f8", ()), "overload": ("u1", (ncol,)),
-                 "backend": (f"S{_STR_LEN}", ()), "software_version": (f"S{_STR_LEN}", ()),
-                 "meta": (f"S{_META_LEN}", ()), "committed": ("i8", ())}
-        for name, (dt, extra) in specs.items():
-            ds = g.create_dataset(name, shape=(0, *extra), maxshape=(None, *extra), dtype=dt,
-                                  chunks=(4 if name == "meta" else 64, *extra),
-                                  compression="gzip" if name == "meta" else None)
-        g["timestamp"].attrs["units"] = "s"
-        g["overload"].attrs["columns"] = json.dumps([c.name for c in channels])
-        f.flush()
+            create_table(f, kind, channels, timing, trigger, dtype, _STR_LEN, _META_LEN)
 
     def append_shot(self, record: Record, kind: str) -> str:
         """Append one record as a shot of ``kind``; flushed before returning.
@@ -455,29 +383,7 @@ class RunStore:
                     raise ValueError(f"channel {c}: {arr.shape[0]} samples, table has {g[c].shape[1]}")
             nbytes = sum(a.nbytes for a in row.values())
             with reserved(f, nbytes * 1.1 + _META_LEN, self.path, f"the {kind} shot"):
-                return self._append(f, g, row, meta, record, kind)
-
-    def _append(self, f: h5py.File, g: dict, row: dict, meta: bytes, record: Record, kind: str) -> str:
-        n = g["committed"].shape[0]
-        names = list(row)
-        for c, arr in row.items():
-            ds = g[c]
-            ds.resize(n + 1, axis=0)
-            ds[n] = arr
-        for name, val in (("timestamp", float(record.timestamp)),
-                          ("overload", np.array([bool(record.overload.get(c, False)) for c in names], "u1")),
-                          ("backend", record.backend.encode()[:_STR_LEN]),
-                          ("software_version", software_version().encode()[:_STR_LEN]),
-                          ("meta", meta)):
-            ds = g[name]
-            ds.resize(n + 1, axis=0)
-            ds[n] = val
-        f.flush()                      # data first ...
-        ds = g["committed"]            # ... then the commit marker
-        ds.resize(n + 1, axis=0)
-        ds[n] = n + 1
-        f.flush()
-        return f"{kind}_{n + 1:04d}"
+                return append_row(f, g, row, meta, record, kind, software_version(), _STR_LEN)
 
     def _table(self, kind: str) -> tuple[dict, list[str]]:
         """Dataset handles of a shot table (cached while the file stays open)."""

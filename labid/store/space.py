@@ -1,6 +1,6 @@
-"""Disk space for the run file's HDF5 writes (issue 27: a full disk or ``ulimit -f`` made
-HDF5 fail half-way through a shot, and the library then crashed the process when the
-file was closed).
+"""Disk space for the run file's HDF5 writes, and the temporary files beside it (issue 27:
+a full disk or ``ulimit -f`` made HDF5 fail half-way through a shot, and the library then
+crashed the process when the file was closed).
 
 HDF5 cannot recover from a write that fails inside the library: the file can no longer be
 flushed or closed, and freeing its objects segfaults. So the store never lets HDF5 meet a
@@ -26,7 +26,7 @@ from ..base.atomic import FULL, reason, reserve
 from ..base.errors import UserError
 
 #: reserved besides the data for HDF5's metadata (chunk index, object headers, superblock)
-MARGIN = 512 << 10
+MARGIN = 256 << 10
 _POISONED: list = []
 _WRITE_FAILED = re.compile(r"write failed|unable to extend|errno = (27|28|122)\b|No space left|File too large")
 
@@ -70,7 +70,7 @@ def reserved(f: h5py.File, nbytes: float, path: Path, what: str, trim: bool = Tr
         with contextlib.suppress(OSError):       # nothing of it was used
             if os.fstat(fd).st_size > start:
                 os.ftruncate(fd, start)
-        raise UserError(f"{what} refused: {reason(e)}; needs about {(nbytes + MARGIN) / 1e6:.2g} MB more. "
+        raise UserError(f"{what} refused: {reason(e)}; needs up to {(nbytes + MARGIN) / 1e6:.2g} MB more. "
                         "Everything written before is kept", file=str(path)) from None
     yield
     if trim:
@@ -93,6 +93,19 @@ def trim_file(path: Path) -> None:
         end = base + int.from_bytes(head[12 + 2 * n:12 + 3 * n], "little")
         if 0 < end < os.fstat(fh.fileno()).st_size:
             fh.truncate(end)
+
+
+def remove_stale(path: Path, suffixes: tuple[str, ...]) -> None:
+    """Temporary files a killed writer left beside the run ``path`` (the caller holds the
+    lock: none is live): ``.RUN.h5.XXXXXXXX.results`` and the like (``atomic.temp_beside``),
+    and the fixed names of earlier versions (``RUN.h5.results``...). Unlinking never
+    follows a link."""
+    name = re.escape(f".{path.name}.") + r"[a-z0-9_]{8}(" + "|".join(re.escape(s) for s in suffixes) + ")"
+    old = {path.name + s for s in suffixes}
+    for p in path.parent.iterdir():
+        if p.name in old or re.fullmatch(name, p.name):
+            with contextlib.suppress(OSError):
+                p.unlink()
 
 
 def write_failed(path: Path, e: BaseException, what: str) -> UserError:
