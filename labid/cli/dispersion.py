@@ -10,11 +10,13 @@ discretisation (``order``, ``elements_per_ply``).
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from engine.safe import SafeError, dispersion_from_model, safe_model
 
-from ..base import progress
+from ..base import atomic, progress
 from .options import MAX_FREQUENCIES, add_json_option, bounded, count
 from ..base.errors import UserError
 from ..inputs.limits import check_fmax
@@ -109,9 +111,12 @@ def _plot(d, title: str, path: str) -> None:
     axes[0].legend(fontsize=8, ncol=2)
     fig.suptitle(f"{title} — SAFE dispersion, direction {d.direction_deg:g}°")
     fig.tight_layout()
+    fmt = Path(path).suffix[1:].lower() or "png"
     try:
-        fig.savefig(path, dpi=110)
-    except OSError as e:
-        raise UserError(f"cannot write: {e.strerror}", file=path, key="--plot") from None
+        with atomic.replacing(path, key="--plot") as tmp:     # temp + rename: never half a PNG (issue 27)
+            try:
+                fig.savefig(tmp, dpi=110, format=fmt)
+            except ValueError as e:                        # an unknown format
+                raise UserError(f"cannot write a figure ({e})", file=path, key="--plot") from None
     finally:
         plt.close(fig)

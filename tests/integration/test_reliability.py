@@ -274,6 +274,13 @@ def test_atomic_write_leaves_the_old_file_when_the_rename_fails(tmp_path, monkey
     assert out.read_text() == "old" and siblings(out) == {"f.json"}
 
 
+def test_atomic_outputs_get_the_permissions_of_a_plain_write(tmp_path):
+    """mkstemp makes its file 0600; the published file is 0666 less the umask, as open() gives."""
+    atomic.write_text(tmp_path / "a.txt", "x")
+    (tmp_path / "b.txt").write_text("x")
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == (tmp_path / "b.txt").stat().st_mode & 0o777
+
+
 def test_json_output_is_replaced_atomically(tmp_path):
     out = tmp_path / "m.json"
     out.write_text("previous")
