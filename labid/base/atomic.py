@@ -61,11 +61,16 @@ def _fail(path: Path, e: OSError, key: str | None) -> UserError:
     return UserError(f"cannot write ({reason(e)}); the file is left as it was", file=str(path), key=key)
 
 
+def default_mode() -> int:
+    """The permissions ``open(path, "w")`` gives a new file: 0666 less the umask."""
+    return 0o666 & ~_UMASK
+
+
 def publish(tmp: Path, path: Path) -> None:
     """Sync ``tmp``, give it the default permissions and rename it over ``path``."""
     fd = os.open(tmp, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
     try:
-        os.fchmod(fd, 0o666 & ~_UMASK)
+        os.fchmod(fd, default_mode())
         os.fsync(fd)
     finally:
         os.close(fd)

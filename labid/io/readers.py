@@ -89,11 +89,16 @@ def read_columns(path: str | Path) -> list[Column]:
     if not p.is_file():
         raise UserError("file not found; expected a recording (TDMS, UFF58, WAV, MAT or CSV)", file=str(p))
     fmt = file_format(p)
-    cols = {"tdms": read_tdms, "uff": read_uff58, "wav": read_wav, "mat": read_mat, "csv": read_csv}[fmt](p)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")       # a damaged file's casts: the checks below say what is wrong
+        cols = {"tdms": read_tdms, "uff": read_uff58, "wav": read_wav, "mat": read_mat, "csv": read_csv}[fmt](p)
     if not cols:
         raise UserError("holds no channel of samples", file=str(p))
     for c in cols:
         c.fmt = fmt
+        if not np.all(np.isfinite(c.data)):
+            raise UserError(f"{int(np.sum(~np.isfinite(c.data)))} sample(s) not finite (NaN or infinite); "
+                            "expected numbers", file=str(p), key=c.qualified)
     return cols
 
 

@@ -144,6 +144,7 @@ def repair(path: Path, opener=None) -> None:
                     poison(dst)
             raise
         trim_file(tmp)
+        shutil.copymode(path, tmp)               # the run keeps its permissions (mkstemp: 0600)
         os.replace(tmp, path)
     finally:
         view = getattr(src, "_labid_view", None)

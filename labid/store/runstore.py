@@ -63,11 +63,12 @@ import numpy as np
 
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
-from ..base.atomic import temp_beside
+from ..base.atomic import default_mode, temp_beside
 from ..base.errors import UserError
 from ..base.jsonio import to_jsonable
 from .h5repair import is_consistency_flag_error, repair
 from .lock import WriterLock, relock
+from .probe import in_child, probe
 from .readonly import open_read_only
 from .tables import append_row, create_table, drop_uncommitted, init_file, read_records
 from .space import is_write_failure, poison, remove_stale, reserved, trim_file, write_failed
@@ -122,6 +123,7 @@ class RunStore:
                 raise UserError("file not found; expected a run file (HDF5)", file=str(self.path))
             if not self.path.is_file():
                 raise UserError("not a regular file; expected a run file (HDF5)", file=str(self.path))
+            probe(self.path)          # a file the library would loop on: refused (store.probe)
             try:
                 self._f = open_read_only(self.path)
                 self._live = bool(self._f.swmr_mode)
@@ -156,6 +158,7 @@ class RunStore:
     def _open_writer(self) -> None:
         remove_stale(self.path, TEMP_SUFFIXES)
         if self.path.exists():
+            probe(self.path)
             self._f = self._open_append()
             self._check_schema()
             check_run(self._f, str(self.path))
@@ -176,6 +179,7 @@ class RunStore:
                         raise write_failed(self.path, e, "creating the run file") from None
                     raise
                 trim_file(tmp)
+                os.chmod(tmp, default_mode())   # mkstemp made it 0600; a run file is shared as any file
                 os.replace(tmp, self.path)
             finally:
                 tmp.unlink(missing_ok=True)
@@ -477,8 +481,11 @@ class RunStore:
     def read_group(self, path: str) -> dict:
         """The nested dict written by ``write_group`` (arrays as numpy, strings as str)."""
         full = f"results/{path.strip('/')}"
-        with self._reading():
-            tree = read_tree(self._f[full]) if full in self._f else None
+
+        def read():
+            with self._reading():
+                return read_tree(self._f[full]) if full in self._f else None
+        tree = in_child(self.path, full, read)    # a group the library would loop on: refused (store.probe)
         if tree is None:
             raise KeyError(f"no results group {path!r} in {self.path}")
         check_result(path.strip("/"), decode_result(tree), str(self.path))

@@ -114,6 +114,7 @@ def replace_group(run: Path, full: str, data: dict) -> None:
     try:
         tmp = temp_beside(run, ".results")
         shutil.copyfile(run, tmp)
+        shutil.copymode(run, tmp)                # the run keeps its permissions (mkstemp: 0600)
         _write_copy(tmp, run, full, data)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())

@@ -513,6 +513,39 @@ def test_a_result_the_damaged_run_cannot_take_still_goes_to_json(analysed, modal
     assert all(len(ln) < 1000 for ln in err.splitlines())
 
 
+def heap_loop(src: Path, dst: Path) -> Path:
+    """A copy of ``src`` where the HDF5 library loops when it reads a string: in the first
+    global heap collection with free space, the object before that free space grows by
+    2048 bytes (one flipped bit of its size field), into the free space. One of 28 runs
+    with 60 random byte flips had this (the library spun for minutes in its C code)."""
+    import re
+    a = bytearray(src.read_bytes())
+    for m in re.finditer(b"GCOL", a):
+        g, size = m.start(), int.from_bytes(a[m.start() + 8:m.start() + 16], "little")
+        p, last = g + 16, None
+        while p < g + size:
+            idx, osz = int.from_bytes(a[p:p + 2], "little"), int.from_bytes(a[p + 8:p + 16], "little")
+            if idx == 0:
+                if last is not None and osz > 2048 + 64:
+                    a[last + 9] = (a[last + 9] + 8) & 0xFF
+                    dst.write_bytes(bytes(a))
+                    return dst
+                break
+            last = p
+            p += 16 + ((osz + 7) // 8) * 8
+    raise AssertionError("no global heap collection with free space in the run")
+
+
+def test_a_run_the_hdf5_library_would_loop_on_is_refused_in_one_line(analysed, tmp_path):
+    """Reading its string attributes spun in the library's C code, beyond any signal handler:
+    the read is tried in a child with bounded CPU first (store.probe); the command's own CPU
+    is bounded here too, so the test ends whatever the code does."""
+    run = heap_loop(analysed, tmp_path / "loop.h5")
+    p = labid_limited(["report", run, "--out", tmp_path / "r.html", "-q"], cpu=60, env={"LABID_PROBE_CPU_S": "2"})
+    assert p.returncode == 2, (p.returncode, p.stderr[-500:])
+    assert "loops" in one_line(p.stderr) and str(run) in p.stderr
+
+
 # ------------------------------------------------------------------ readers (issue 27 rows, issue 26 item 8)
 def recording(tmp_path: Path, kind: str) -> Path:
     import scipy.io
@@ -609,14 +642,16 @@ def test_an_unwritable_uff_path_is_exit_2(analysed, tmp_path, capsys):
 
 
 def test_no_library_warning_reaches_the_console(tmp_path, capsys):
-    """A float WAV with a 'fact' chunk (scipy's WavFileWarning) imports with no warning line."""
+    """A float WAV with a 'PEAK' chunk (SoX and Audacity write one; scipy warns 'Chunk (non-data)
+    not understood') imports with no warning line."""
     from scipy.io import wavfile
     p = tmp_path / "f.wav"
     wavfile.write(p, 10000, (0.1 * np.sin(np.arange(600) / 9)).astype(np.float32))
-    data = p.read_bytes()                          # insert a 'fact' chunk before 'data', as editors write
+    data = p.read_bytes()                          # insert the PEAK chunk before 'data'
     i = data.index(b"data")
-    fact = b"fact" + (4).to_bytes(4, "little") + (600).to_bytes(4, "little")
-    body = data[12:i] + fact + data[i:]
+    payload = (1).to_bytes(4, "little") + (0).to_bytes(4, "little") + np.float32(0.1).tobytes() + (5).to_bytes(4, "little")
+    peak = b"PEAK" + len(payload).to_bytes(4, "little") + payload
+    body = data[12:i] + peak + data[i:]
     p.write_bytes(b"RIFF" + (len(body) + 4).to_bytes(4, "little") + b"WAVE" + body)
     import warnings
     with warnings.catch_warnings():

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 import resource
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -31,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[2]
 FAST = settings(deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 N_SPEC, N_TEXT, N_FEAT, N_RIG, N_RUN = 150, 40, 70, 40, 40
-N_RES, N_REC, N_NEST, N_OPT = 12, 20, 12, 25
+N_RES, N_REC, N_NEST, N_OPT = 6, 20, 12, 25
 COUNTS: dict[str, int] = {}
 
 
@@ -127,25 +126,13 @@ def test_a_sample_as_subprocesses(work, base_run):
         check(classify(argv, p.returncode, p.stderr), "subprocess")
 
 
-@pytest.fixture(scope="module")
-def base_analysed(work, base_run):
-    """``base_run`` analysed, and a cheap modal features file referring to it."""
-    run = work / "analysed.h5"
-    shutil.copyfile(base_run, run)
-    assert run_case(["analyze", str(run)]).rc == 0
-    feats = work / "analysed_feats.json"
-    feats.write_text(json.dumps({"specimen": "aluminium", "modal": {"frequencies_hz": [10.3, 15.2, 20.4, 27.1]},
-                                 "analysis": {"run": "analysed.h5"}}))
-    return run, feats
-
-
 @settings(FAST, max_examples=N_RES)
 @given(name=st.sampled_from(["identification", "diagnosis", "gui"]),
        doc=mutated({"parameters": {"E": {"value": 7e10, "std": 1e9}}, "fit": {"chi2": 3.0, "consistent": True},
                     "gap": {"before": 2.0}, "effects": [{"name": "x", "magnitude": 1.0}], "verdict": "none",
                     "state_json": "{}", "warnings": ["w"]}))
-def test_garbage_results_through_report_and_export(work, base_analysed, name, doc):
-    run = with_results(base_analysed[0], work / "res.h5", name, doc)
+def test_garbage_results_through_report_and_export(work, base_run, name, doc):
+    run = with_results(base_run, work / "res.h5", name, doc)
     check(run_case(["report", str(run), "--out", str(work / "r.html")]), "results/report")
     check(run_case(["export", str(run), "--csv", str(work / "csv"), "--uff", str(work / "r.uff")]), "results/export")
 
@@ -171,7 +158,8 @@ def test_damaged_recordings_through_import(work, recordings, fmt, data):
 @given(kind=st.sampled_from(["json", "toml"]), data=st.data())
 def test_deeply_nested_documents(work, kind, data):
     p = write_case(work / f"nested.{kind}", data.draw(nested_text(kind)))
-    argv = ["identify", str(p), "--params", "E"] if kind == "json" else ["modes", str(p), "--n", "1", "--mesh", "2x2"]
+    # --params nosuch: a document that parses is refused right after (no fit in CI)
+    argv = ["identify", str(p), "--params", "nosuch"] if kind == "json" else ["modes", str(p), "--n", "1", "--mesh", "2x2"]
     check(run_case(argv), "nested")
 
 
@@ -180,9 +168,9 @@ CHEAP = ("modes", "dispersion", "acquire", "import", "report", "export", "demo")
 
 @settings(FAST, max_examples=N_OPT)
 @given(case=option_cases().filter(lambda c: c[0] in CHEAP))
-def test_hostile_option_values(work, base_analysed, recordings, case):
+def test_hostile_option_values(work, base_run, recordings, case):
     cmd, argv, opt, value = case
-    fill = {"RUN": str(base_analysed[0]), "OUT": str(work / "opt.h5"), "CSV": str(recordings["csv"])}
+    fill = {"RUN": str(base_run), "OUT": str(work / "opt.h5"), "CSV": str(recordings["csv"])}
     argv = [fill.get(a, a.replace("DIR", str(work))) for a in argv]
     (work / "opt.h5").unlink(missing_ok=True)
     check(run_case(argv), f"options/{cmd}")

@@ -281,6 +281,19 @@ def test_atomic_outputs_get_the_permissions_of_a_plain_write(tmp_path):
     assert (tmp_path / "a.txt").stat().st_mode & 0o777 == (tmp_path / "b.txt").stat().st_mode & 0o777
 
 
+def test_run_files_keep_the_permissions_of_a_plain_write(tmp_path):
+    """A run created (a temporary renamed), its results stored (a copy renamed over it) and a
+    repair keep the mode a plain file gets, never mkstemp's 0600."""
+    (tmp_path / "plain").write_text("x")
+    mode = (tmp_path / "plain").stat().st_mode & 0o777
+    p = small_run(tmp_path / "run.h5", result={"x": 1.0})
+    assert p.stat().st_mode & 0o777 == mode
+    os.chmod(p, 0o640)
+    with RunStore(p) as st:
+        st.write_result("analysis", {"x": 2.0})
+    assert p.stat().st_mode & 0o777 == 0o640
+
+
 def test_json_output_is_replaced_atomically(tmp_path):
     out = tmp_path / "m.json"
     out.write_text("previous")
