@@ -7,8 +7,8 @@ readers (report, export, panel) use must have the type written there. Unknown ke
 absent keys pass (readers take them with ``.get``); a wrong type is a ``UserError``
 naming the file and the key: the run is damaged, and every reader refuses it in one line.
 
-Spec language: ``N`` a number or null (NaN is stored as null), ``S`` a string, ``B`` a
-boolean, ``A`` anything, ``D`` any object, ``L`` any list; ``{"key": spec}`` an object
+Spec language: ``N`` a number or null (NaN is stored as null), ``R`` a number (never
+null: readers format it), ``S`` a string, ``B`` a boolean, ``A`` anything, ``D`` any object, ``L`` any list; ``{"key": spec}`` an object
 with those keys, ``{"*": spec}`` an object whose every value is ``spec``; ``[spec]`` a
 list (or array) of ``spec``; a tuple: any of its specs.
 """
@@ -22,26 +22,27 @@ import numpy as np
 
 from ..base.errors import UserError
 
-N, S, B, A, D, L = "number", "string", "boolean", "any", "object", "list"
+N, R, S, B, A, D, L = "number", "real", "string", "boolean", "any", "object", "list"
 _NUMS = [N]
 _PAR = {"*": N}                                   # a value per parameter name
 
 FEATURES = {
     "specimen": (S, D),
-    "modal": {"frequencies_hz": _NUMS, "sigma_hz": _NUMS, "damping_ratio": _NUMS, "confidence": _NUMS,
+    "modal": {"frequencies_hz": [R], "sigma_hz": _NUMS, "damping_ratio": _NUMS, "confidence": _NUMS,
               "mode_index": _NUMS, "mode_shapes": {"points": [_NUMS], "values": [_NUMS]}},
-    "waves": ([{"mode": S, "direction_deg": N, "frequency_hz": _NUMS, "group_velocity_m_s": _NUMS,
+    "waves": ([{"mode": S, "direction_deg": R, "frequency_hz": _NUMS, "group_velocity_m_s": _NUMS,
                 "sigma_m_s": _NUMS, "dropped": {"*": N}}], D),
     "rig": {"temperature_c": N, "accelerometers": [{"x": N, "y": N, "mass_kg": N}],
             "supports": [{"x": N, "y": N}], "wave_path_m": N, "sensor_length_m": N},
-    "damping": {"modes": [{"frequency_hz": N, "loss_factor": N, "damping_ratio": N, "label": (S, N)}],
+    "damping": {"modes": [{"frequency_hz": R, "loss_factor": N, "damping_ratio": N, "label": (S, N)}],
                 "families": {"*": {"modes": L, "median_loss_factor": N}}},
     "analysis": {"notes": [S], "run": S},
 }
 IDENTIFICATION = {
     "parameters": {"*": {"value": N, "std": N, "identified": B}},
     "converged": B, "identified": B, "method": S, "message": S, "iterations": N, "specimen": S,
-    "data": (S, [S]), "warnings": [(S, D)], "flags": [(S, D)], "held": D, "sigma_scale": D,
+    "data": (S, [S]), "warnings": [(S, D)], "flags": [(S, D)], "sigma_scale": _PAR,
+    "held": {"*": ({"value": N, "std": N}, N)},
     "residual": _PAR, "start": _PAR, "nominal": _PAR,
     "fit": {"chi2": N, "dof": N, "n_points": N, "chi2_per_dof": N, "p_value": N, "consistent": B,
             "identified": B, "std_scale": N, "flags": D, "unexplained_peaks": N},
@@ -64,7 +65,7 @@ IDENTIFICATION = {
                            "correlation": {"names": [S], "matrix": [_NUMS]}},
 }
 DIAGNOSIS = {
-    "gap": {"*": (N, B, S)}, "verdict": S, "where": [S], "notes": [S], "diagnosis_notes": [S],
+    "gap": {"*": (N, B, S)}, "verdict": S, "where": [(S, D)], "notes": [S], "diagnosis_notes": [S],
     "effects": [{"name": S, "magnitude": N, "std": N, "unit": S, "gap_after": N, "score": N, "delta_chi2": N,
                  "refitted": B, "detectable": B, "absorbed_fraction": N, "held_out_after": N,
                  "bias_in_constants_per_unit": _PAR}],
@@ -108,9 +109,9 @@ def _fits(value: Any, spec) -> str | None:
         return None if None in found else found[0]
     if spec == A:
         return None
-    if spec == N:
-        ok = value is None or (isinstance(value, (numbers.Real, np.number)) and not isinstance(value, (bool, np.bool_))) \
-            or (isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf")
+    if spec in (N, R):
+        ok = (value is None and spec == N) or (isinstance(value, (numbers.Real, np.number)) and not isinstance(
+            value, (bool, np.bool_))) or (isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf")
         return None if ok else f": {type(value).__name__}, expected a number"
     if spec == S:
         return None if isinstance(value, str) else f": {type(value).__name__}, expected text"
@@ -122,7 +123,7 @@ def _fits(value: Any, spec) -> str | None:
         return None if isinstance(value, (list, np.ndarray)) else f": {type(value).__name__}, expected a list"
     if isinstance(spec, list):
         if isinstance(value, np.ndarray):
-            ok = spec[0] in (N, A) and value.dtype.kind in "iufb" or spec[0] == S and value.dtype.kind in "OSU"
+            ok = spec[0] in (N, R, A) and value.dtype.kind in "iufb" or spec[0] == S and value.dtype.kind in "OSU"
             return None if ok else f": an array of {value.dtype}, expected a list"
         if not isinstance(value, list):
             return f": {type(value).__name__}, expected a list"
