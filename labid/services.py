@@ -66,7 +66,7 @@ from .inputs import calibration as calib
 from .io import exporters, importers
 from .inputs.rig import Rig, load_rig
 from .inputs.specimen import Specimen, load_specimen
-from .store import KINDS, RunStore, WriterLock, decode_result
+from .store import KINDS, RunStore, WriterLock
 
 __all__ = [
     # the run file

@@ -1,9 +1,10 @@
-"""Generated inputs for the fuzz suite (tests/test_fuzz.py, bench/bench_fuzz.py).
+"""Generated inputs for the fuzz suite (tests/integration/test_fuzz.py, bench/bench_fuzz.py).
 
-hypothesis strategies that mutate valid specimen TOML, rig TOML, features JSON and
-run files (HDF5), and ``run_case``: one command in-process under a per-case timeout,
-classified against the CLI contract (exit 0/2/3; a 2 is one line; never a traceback,
-a hang or a signal).
+hypothesis strategies that mutate valid specimen TOML, rig TOML, features JSON, run files
+(HDF5), the results stored in them, recordings (CSV, WAV, MAT, TDMS, UFF), documents nested
+deep, and the options of every command; and ``run_case``: one command in-process under a
+bound on its CPU time (not its wall time: a busy machine is not a hang), classified against
+the CLI contract (exit 0/2/3; a 2 is one line; never a traceback, a hang or a signal).
 """
 from __future__ import annotations
 
@@ -187,23 +188,24 @@ def _alarm(signum, frame):
     raise CaseTimeout()
 
 
-def run_case(argv: list[str], timeout_s: float = 60.0) -> Outcome:
-    """``labid ARGV`` in-process under a per-case timeout, classified against the contract."""
+def run_case(argv: list[str], cpu_s: float = 60.0) -> Outcome:
+    """``labid ARGV`` in-process with at most ``cpu_s`` s of CPU time (this process's, every
+    thread: ``ITIMER_PROF``), classified against the contract; past it, a hang."""
     out, err = io.StringIO(), io.StringIO()
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, timeout_s)
+    old = signal.signal(signal.SIGPROF, _alarm)
+    signal.setitimer(signal.ITIMER_PROF, cpu_s)
     rc: int | None = None
     try:
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
             try:
-                rc = cli.main([*argv, "--quiet"])
-            except SystemExit as e:                # usage errors (argparse)
+                rc = cli.main([*map(str, argv), "--quiet"])
+            except SystemExit as e:                # usage errors (argparse), if main lets one out
                 rc = e.code if isinstance(e.code, int) else 2
     except CaseTimeout:
         return Outcome(argv, None, err.getvalue(), "hang")
     finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
+        signal.setitimer(signal.ITIMER_PROF, 0)
+        signal.signal(signal.SIGPROF, old)
     return classify(argv, rc, err.getvalue())
 
 
@@ -263,3 +265,122 @@ def damaged_copy(base: Path, dst: Path, how: str, seed: int) -> Path:
 ATTR_DAMAGE = ["labid_schema=one", "rate_hz=0", "rate_hz=-1", "samples=0", "pretrigger=-5",
                "channels={bad", "channels=[]", "trigger=[1, 2]", "channels=[{\"name\": 3}]",
                "samples=99999999999"]
+
+
+# ------------------------------------------------------------------ results stored in a run (issue 27)
+def with_results(base: Path, dst: Path, name: str, doc) -> Path:
+    """A copy of the run ``base`` whose ``/results/<name>`` holds ``doc`` as its JSON copy
+    (what ``write_result`` stores and readers prefer)."""
+    shutil.copyfile(base, dst)
+    with h5py.File(dst, "a") as f:
+        if f"results/{name}" in f:
+            del f[f"results/{name}"]
+        f["results"].create_group(name)["json"] = json.dumps(doc, allow_nan=True, default=str)
+    return dst
+
+
+# ------------------------------------------------------------------ recordings (labid import)
+def recording_bases(d: Path) -> dict[str, Path]:
+    """Valid recordings of the default rig's force and acc1 channels, one per format."""
+    import scipy.io
+    from scipy.io import wavfile
+    n = 256
+    t = np.arange(n) / 1e4
+    force, acc = np.sin(t * 900.0), np.cos(t * 1300.0)
+    out = {}
+    p = d / "base.csv"
+    p.write_text("time,force [N],acc1 [m/s^2]\n" + "\n".join(f"{t[i]:.6g},{force[i]:.6g},{acc[i]:.6g}"
+                                                              for i in range(n)) + "\n")
+    out["csv"] = p
+    p = d / "base.wav"
+    wavfile.write(p, 10000, (np.column_stack([force, acc]) * 0.5).astype(np.float32))
+    out["wav"] = p
+    p = d / "base.mat"
+    scipy.io.savemat(p, {"force": force, "acc1": acc, "fs": 1e4})
+    out["mat"] = p
+    from nptdms import ChannelObject, TdmsWriter
+    p = d / "base.tdms"
+    with TdmsWriter(p) as w:
+        w.write_segment([ChannelObject("g", c, x, properties={"wf_increment": 1e-4, "unit_string": u})
+                         for c, x, u in (("force", force, "N"), ("acc1", acc, "m/s^2"))])
+    out["tdms"] = p
+    import pyuff
+    p = d / "base.uff"
+    sets = [pyuff.prepare_58(binary=0, id1=c, func_type=1, rsp_node=k + 1, rsp_dir=3, ref_node=0, ref_dir=0,
+                             data=x, x=t, abscissa_spacing=1, abscissa_spec_data_type=17,
+                             abscissa_axis_units_lab="s", ordinate_spec_data_type=12 if k else 13,
+                             ordinate_axis_units_lab=u, orddenom_spec_data_type=0, z_axis_spec_data_type=0)
+            for k, (c, x, u) in enumerate((("force", force, "N"), ("acc1", acc, "m/s^2")))]
+    pyuff.UFF(str(p)).write_sets(sets, mode="add")
+    out["uff"] = p
+    return out
+
+
+@st.composite
+def damaged_bytes(draw, data: bytes) -> bytes:
+    """``data`` with bytes flipped, a slice cut out or replaced, or truncated."""
+    how = draw(st.sampled_from(("flip", "flip", "truncate", "splice", "extend")))
+    b = bytearray(data)
+    if how == "flip":
+        for _ in range(draw(st.integers(1, 30))):
+            i = draw(st.integers(0, len(b) - 1))
+            b[i] ^= draw(st.integers(1, 255))
+    elif how == "truncate":
+        b = b[:draw(st.integers(0, len(b)))]
+    elif how == "splice":
+        i = draw(st.integers(0, len(b)))
+        j = draw(st.integers(i, min(len(b), i + 200)))
+        b[i:j] = draw(st.binary(max_size=64))
+    else:
+        b += draw(st.binary(max_size=64))
+    return bytes(b)
+
+
+# ------------------------------------------------------------------ deep documents
+@st.composite
+def nested_text(draw, kind: str) -> str:
+    """A features JSON or a specimen/rig TOML with a value nested 1 to 100,000 deep."""
+    depth = draw(st.sampled_from((1, 10, 31, 33, 100, 1000, 20_000, 100_000)))
+    open_, close = draw(st.sampled_from((("[", "]"), ("{\"a\": ", "}") if kind == "json" else ("{a = ", "}"))))
+    inner = open_ * depth + ("1" if "a" in open_ else "") + close * depth
+    if kind == "json":
+        return '{"specimen": "aluminium", "modal": {"frequencies_hz": [20.0, 30.0]}, "analysis": {"x": ' + inner + "}}"
+    return toml_text(base_specimen()) + f"extra = {inner}\n"
+
+
+# ------------------------------------------------------------------ options of every command
+OPTION_VALUES = ("0", "-1", "1", "2", "3", "1e9", "1e12", "1000000000000", "-1e300", "nan", "inf", "-inf", "",
+                 " ", "x", "1,2", "1e9,1e9", "0,0", "-5,5", "2,5", "20,20", "21,1", "E=1", "E1=136.7",
+                 "E=nan", "=", ",,", "\0", "0x10", "1_000", "٣", "9" * 400, "x" * 300)
+#: (command, its other arguments, the options whose values are fuzzed); placeholders: RUN, FEATS,
+#: OUT, CSV, DIR filled in by the caller
+OPTION_TARGETS = (
+    ("modes", ["aluminium", "--mesh", "2x2"], ["--n", "--mesh", "--grid", "--threads"]),
+    ("dispersion", ["aluminium", "--n", "4"], ["--fmax", "--n", "--direction-deg"]),
+    ("acquire", ["--specimen", "aluminium", "--out", "OUT", "--hits", "0", "--waves", "0"],
+     ["--hits", "--waves", "--seed", "--effects", "--backend"]),
+    ("import", ["CSV", "--rig", "default", "--specimen", "cfrp", "--out", "OUT"],
+     ["--rate", "--pretrigger", "--map", "--units", "--kind"]),
+    ("analyze", ["RUN", "--out", "FEATSOUT"], ["--wavelet", "--wave-band", "--modal-fmax", "--exp-window"]),
+    ("identify", ["FEATS", "--params", "E"], ["--workers", "--starts", "--mcmc", "--seed", "--prior", "--start",
+                                              "--params", "--method"]),
+    ("diagnose", ["FEATS", "--params", "E"], ["--alpha", "--prior", "--start", "--params"]),
+    ("report", ["RUN", "--out", "DIR/r.html"], ["--out"]),
+    ("export", ["RUN", "--csv", "DIR/csv"], ["--uff", "--csv"]),
+    ("demo", ["--out", "DIR/demo"], ["--hits", "--waves", "--seed"]),
+)
+@st.composite
+def option_cases(draw) -> tuple[str, list[str], str, str]:
+    """(command, argv with one option set to a hostile value, the option, the value)."""
+    cmd, base, options = draw(st.sampled_from(OPTION_TARGETS))
+    opt = draw(st.sampled_from(options))
+    value = draw(st.one_of(st.sampled_from(OPTION_VALUES), st.text(max_size=8)))
+    if cmd == "demo":                              # only values refused before the demo runs
+        value = draw(st.sampled_from(("-1", "1e9", "x", "", "1000000000000", "nan", "2.5")))
+    argv = [cmd, *base]
+    if opt in argv:
+        i = argv.index(opt)
+        argv[i + 1] = value
+    else:
+        argv += [opt, value]
+    return cmd, argv, opt, value

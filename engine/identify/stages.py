@@ -9,7 +9,7 @@ diagnosis call, on the blocks of ``engine.identify.blocks.feature_blocks``:
    positive-definite stiffness is checked by the forward models);
 2. with likelihood pairing, a cheap global stage (:func:`global_starts`,
    ``engine.identify.surrogate``) gives up to N_GLOBAL_FITS starts; each is fitted with
-   re-pairing between local fits (:func:`repair_loop`, oscillation guarded) until one
+   re-pairing between local fits (:func:`_repair_loop`, oscillation guarded) until one
    is consistent; the most likely is kept;
 3. Birge refit and data-set consistency (``engine.fit.checks``);
 4. the verdict (:func:`verdict`): chi2, dof, p-value, consistent, std scaled by
@@ -38,7 +38,7 @@ from .surrogate import RitzSurrogate, global_search
 from .verdict import BOX, POISSON_MAX, RUNAWAY, FitContext, admissibility, bounds, boxed, systematic, verdict
 
 __all__ = ["FitContext", "fit_blocks", "verdict", "admissibility", "bounds", "boxed",
-           "global_starts", "repair_loop", "pairing_report", "discretisation", "RUNAWAY", "BOX",
+           "global_starts", "pairing_report", "discretisation", "RUNAWAY", "BOX",
            "POISSON_MAX", "N_GLOBAL_FITS", "MAX_REPAIR", "TAU_RANGE", "N_EXTRA_MODES", "identifiable",
            "HOLD_REL", "HELD_PRIOR", "systematic"]
 

@@ -15,7 +15,7 @@ Frequencies in Hz, time constants in s; units SI throughout.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, Sequence
 
 import numpy as np
 

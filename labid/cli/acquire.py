@@ -12,7 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from .. import services
-from .options import add_json_option, write_json
+from .options import MAX_SEED, MAX_SHOTS, add_json_option, count, write_json
 from ..base.errors import UserError
 from ..inputs.rig import load_rig, parse_truth_scale
 from ..inputs.specimen import load_specimen
@@ -29,11 +29,14 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, metavar="RUN.h5", help="run file (created or appended to)")
     p.add_argument("--backend", choices=("mock", "nidaqmx"), default="mock",
                    help="simulated rig (mock, default) or NI-DAQmx hardware")
-    p.add_argument("--hits", type=int, default=None, metavar="N", help="hammer hits (rig default)")
-    p.add_argument("--waves", type=int, default=None, metavar="M", help="wave shots (rig default)")
+    p.add_argument("--hits", type=count(MAX_SHOTS, "a number of hits"), default=None, metavar="N",
+                   help="hammer hits (rig default)")
+    p.add_argument("--waves", type=count(MAX_SHOTS, "a number of wave shots"), default=None, metavar="M",
+                   help="wave shots (rig default)")
     p.add_argument("--total", action="store_true",
                    help="N and M count the shots already in RUN.h5 (resume to the planned size)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="random seed of the simulated rig")
+    p.add_argument("--seed", type=count(MAX_SEED, "a seed"), default=0, metavar="S",
+                   help="random seed of the simulated rig")
     p.add_argument("--effects", default="", metavar="NAME=V,..",
                    help="unmodelled effects injected into the simulated rig, e.g. "
                         "'sensor_mass=0.003,temperature=10' (CONTRACT effect names, SI units)")
@@ -97,6 +100,8 @@ def run(args) -> dict:
     w.write(f"recorded {rec['hammer']} hammer and {rec['wave']} wave shots "
             f"into {args.out} ({summary['in_file']['hammer']} + {summary['in_file']['wave']} "
             "in the file)\n")
+    if stop["flag"]:            # Ctrl-C during the last shot: that shot is kept, the exit code says 130
+        summary["interrupted"] = True
     if not summary["interrupted"]:
         w.write(f"next: labid analyze {args.out}\n")
     if summary["interrupted"]:

@@ -11,7 +11,7 @@ import re
 
 from ..base import progress
 from .. import services
-from .options import add_json_option
+from .options import MAX_WAVELET, add_json_option, bounded
 from ..base.errors import UserError
 from ..base.summary import modes_table, stream
 
@@ -24,9 +24,9 @@ def register(sub) -> None:
     p.add_argument("run", metavar="RUN.h5", help="run file written by labid acquire")
     p.add_argument("--out", default=None, metavar="FEATURES.json",
                    help="features file to write (default: RUN.features.json beside the run)")
-    p.add_argument("--modal-fmax", type=float, default=None, metavar="HZ",
+    p.add_argument("--modal-fmax", type=bounded(float, 0.0, 1e10, "a frequency in Hz"), default=None, metavar="HZ",
                    help="top of the resonance search band (default 0.4 x sample rate)")
-    p.add_argument("--exp-window", type=float, default=None, metavar="TAU_S",
+    p.add_argument("--exp-window", type=bounded(float, 0.0, 1e6, "a time constant in s"), default=None, metavar="TAU_S",
                    help="exponential window time constant on the hammer records (damping corrected)")
     p.add_argument("--wavelet", default=None, metavar="B,C",
                    help="complex Morlet bandwidth and centre (default: 2,1 isotropic; 2,5 laminate)")
@@ -48,14 +48,14 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _pair(text: str, key: str) -> tuple[float, float]:
+def _pair(text: str, key: str, hi: float = float("inf")) -> tuple[float, float]:
     m = _PAIR.match(text)
     try:
         a, b = (float(m.group(1)), float(m.group(2))) if m else (None, None)
     except ValueError:
         a = b = None
-    if a is None or not (a > 0 and b > 0):
-        raise UserError(f"value {text!r}: expected two positive numbers 'A,B'", key=key)
+    if a is None or not (0 < a <= hi and 0 < b <= hi):
+        raise UserError(f"value {text!r}: expected two positive numbers 'A,B' of at most {hi:g}", key=key)
     return a, b
 
 
@@ -64,12 +64,16 @@ def run(args) -> dict:
         raise UserError(f"value {args.modal_fmax!r}: expected a positive frequency in Hz", key="--modal-fmax")
     if args.exp_window is not None and not args.exp_window > 0:
         raise UserError(f"value {args.exp_window!r}: expected a positive time constant in s", key="--exp-window")
-    band = _pair(args.wave_band, "--wave-band") if args.wave_band else None
+    wavelet = _pair(args.wavelet, "--wavelet", 20.0) if args.wavelet else None    # before any work
+    if wavelet and wavelet[0] * wavelet[1] > MAX_WAVELET:
+        raise UserError(f"value {args.wavelet!r}: bandwidth x centre {wavelet[0] * wavelet[1]:g}; expected at most "
+                        f"{MAX_WAVELET:g} (the transform's memory grows with it)", key="--wavelet")
+    band = _pair(args.wave_band, "--wave-band", 1e10) if args.wave_band else None
     if band and not band[0] < band[1]:
         raise UserError(f"value {args.wave_band!r}: expected FMIN < FMAX", key="--wave-band")
     settings = services.AnalysisSettings(
         modal_fmax_hz=args.modal_fmax, exp_tau_s=args.exp_window,
-        wavelet=_pair(args.wavelet, "--wavelet") if args.wavelet else None,
+        wavelet=wavelet,
         wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous",
         report_s0=not args.without_s0)
     out_path = args.out or str(services.features_path(args.run))

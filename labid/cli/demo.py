@@ -30,7 +30,7 @@ from ..base.summary import display_unit
 from ..inputs.specimen import load_specimen
 from ..report.certificate import write_report
 from ..report.plots import plot_gap
-from .options import add_json_option
+from .options import MAX_SEED, MAX_SHOTS, add_json_option, count
 
 DATASETS = ("modal", "waves", "combined")
 #: the identification starts from datasheet values (issue 12): 17-22 % below the simulated
@@ -311,10 +311,12 @@ def _run_demo(out: Path, run: Path, spec, truth: dict, seed: int, hits: int | No
 def register(sub) -> None:
     p = sub.add_parser("demo", help="the whole job end to end on the simulated rig")
     p.add_argument("--out", default="demo_out", metavar="DIR", help="output folder (default demo_out)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the simulated rig")
-    p.add_argument("--hits", type=int, default=None, help="hammer hits (default: the rig file's)")
-    p.add_argument("--waves", type=int, default=None, help="wave shots (default: the rig file's)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--seed", type=count(MAX_SEED, "a seed"), default=0, help="seed of the simulated rig")
+    p.add_argument("--hits", type=count(MAX_SHOTS, "a number of hits"), default=None,
+                   help="hammer hits (default: the rig file's)")
+    p.add_argument("--waves", type=count(MAX_SHOTS, "a number of wave shots"), default=None,
+                   help="wave shots (default: the rig file's)")
+    p.add_argument("--workers", type=count(2, "a number of processes (1 or 2)", 1), default=None, metavar="N",
                    help="processes: 2 runs the independent stages in a second one (default: 2 when "
                         "two cores are available, else 1)")
     add_json_option(p)

@@ -28,7 +28,7 @@ from .. import services
 from ..base.errors import UserError
 from ..inputs.files import read_json_file
 from ..report.plots import check_format, plot_gap
-from .options import add_json_option, check_output_dir, check_output_file
+from .options import add_json_option, bounded, check_output_dir, check_output_file
 
 
 def register(sub) -> None:
@@ -36,13 +36,13 @@ def register(sub) -> None:
                        description=__doc__.splitlines()[0])
     p.add_argument("features", metavar="FEATURES.json", help="measured features (CONTRACT section 2)")
     p.add_argument("--plot", metavar="PNG", help="write a figure of where the gap lies")
-    p.add_argument("--alpha", type=float, default=0.01,
+    p.add_argument("--alpha", type=bounded(float, 0.0, 0.5, "a false-alarm rate"), default=0.01,
                    help="false-alarm rate of the chi^2 gap test (default 0.01)")
     p.add_argument("--csv", metavar="DIR", help="also write the diagnosis tables as DIR/diagnosis_*.csv")
     p.add_argument("--params", metavar="P1,P2,..",
                    help="constants identified before the diagnosis (as labid identify --params)")
     p.add_argument("--start", metavar="P=V,..", help="initial values in SI units (as labid identify --start)")
-    p.add_argument("--prior", type=float, default=None, metavar="S",
+    p.add_argument("--prior", type=bounded(float, 0.0, 1e3, "a positive prior std"), default=None, metavar="S",
                    help="prior std of log(p) about the start (as labid identify --prior; default none)")
     p.add_argument("--estimate", metavar="IDENTIFY.json",
                    help="start from this labid identify --json result of the same features (and the same "

@@ -10,12 +10,14 @@ discretisation (``order``, ``elements_per_ply``).
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from engine.safe import SafeError, dispersion_from_model, safe_model
 
-from ..base import progress
-from .options import add_json_option
+from ..base import atomic, progress
+from .options import MAX_FREQUENCIES, add_json_option, bounded, count
 from ..base.errors import UserError
 from ..inputs.limits import check_fmax
 from ..inputs.specimen import load_specimen
@@ -27,9 +29,11 @@ def register(sub) -> None:
                        description=__doc__.splitlines()[0])
     p.add_argument("spec", metavar="SPEC.toml",
                    help="specimen file, or a built-in name ('cfrp', 'aluminium')")
-    p.add_argument("--fmax", type=float, required=True, metavar="F", help="highest frequency, Hz")
-    p.add_argument("--n", type=int, default=200, metavar="N", help="number of frequencies (default 200)")
-    p.add_argument("--direction-deg", type=float, default=0.0, metavar="D",
+    p.add_argument("--fmax", type=bounded(float, 0.0, 1e12, "a frequency in Hz"), required=True, metavar="F",
+                   help="highest frequency, Hz")
+    p.add_argument("--n", type=count(MAX_FREQUENCIES, "a number of frequencies", 1), default=200, metavar="N",
+                   help="number of frequencies (default 200)")
+    p.add_argument("--direction-deg", type=bounded(float, -360.0, 360.0, "an angle in degrees"), default=0.0, metavar="D",
                    help="propagation direction from the x axis, degrees (default 0)")
     p.add_argument("--plot", metavar="PNG", default=None, help="write phase and group velocity plots")
     add_json_option(p)
@@ -107,9 +111,12 @@ def _plot(d, title: str, path: str) -> None:
     axes[0].legend(fontsize=8, ncol=2)
     fig.suptitle(f"{title} — SAFE dispersion, direction {d.direction_deg:g}°")
     fig.tight_layout()
+    fmt = Path(path).suffix[1:].lower() or "png"
     try:
-        fig.savefig(path, dpi=110)
-    except OSError as e:
-        raise UserError(f"cannot write: {e.strerror}", file=path, key="--plot") from None
+        with atomic.replacing(path, key="--plot") as tmp:     # temp + rename: never half a PNG (issue 27)
+            try:
+                fig.savefig(tmp, dpi=110, format=fmt)
+            except ValueError as e:                        # an unknown format
+                raise UserError(f"cannot write a figure ({e})", file=path, key="--plot") from None
     finally:
         plt.close(fig)

@@ -21,7 +21,8 @@ from ..base import progress
 from ..base.errors import UserError
 from ..base.summary import budget_text, display_unit
 from ..report.plots import check_format, plot_multi_start
-from .options import add_json_option, check_output_dir, check_output_file
+from .options import (MAX_MCMC_STEPS, MAX_SEED, MAX_STARTS, add_json_option, bounded, check_output_dir,
+                      check_output_file, count, cpu_count)
 
 
 def register(sub) -> None:
@@ -35,17 +36,18 @@ def register(sub) -> None:
     p.add_argument("--method", choices=services.METHODS, default="lm",
                    help="lm: combined least squares (default); bayes: Lai & Ip update (Eq. 20); "
                         "nelder-mead: relative misfit (Eq. 29)")
-    p.add_argument("--prior", type=float, default=None, metavar="S",
+    p.add_argument("--prior", type=bounded(float, 0.0, 1e3, "a positive prior std"), default=None, metavar="S",
                    help="prior std of log(p) about the start (lm), or relative prior std (bayes, default 0.5)")
-    p.add_argument("--starts", type=int, default=0, metavar="N",
+    p.add_argument("--starts", type=count(MAX_STARTS, "a number of starts"), default=0, metavar="N",
                    help="also run a multi-start study from N random initial guesses (within +-50%% of the start)")
-    p.add_argument("--workers", type=int, default=2, metavar="W", help="processes for --starts (default 2)")
+    p.add_argument("--workers", type=count(cpu_count, "a number of processes (at most the CPU count)", 1), default=min(2, cpu_count()),
+                   metavar="W", help="processes for --starts (default 2, at most the CPU count)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run --starts on a Dask distributed scheduler (pip install 'labid[cluster]'); "
                         "checked before any fitting")
     p.add_argument("--plot", metavar="PATH", help="scatter plot of the multi-start study (PNG; needs --starts)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of --starts and --mcmc")
-    p.add_argument("--mcmc", type=int, default=0, metavar="STEPS",
+    p.add_argument("--seed", type=count(MAX_SEED, "a seed"), default=0, help="random seed of --starts and --mcmc")
+    p.add_argument("--mcmc", type=count(MAX_MCMC_STEPS, "a number of MCMC steps"), default=0, metavar="STEPS",
                    help="also sample the full posterior by MCMC (emcee) with STEPS steps per walker")
     p.add_argument("--csv", metavar="DIR", help="also write the constants as DIR/constants.csv")
     p.add_argument("--replace", action="store_true",

@@ -15,7 +15,7 @@ from __future__ import annotations
 import sys
 
 from .. import services
-from .options import add_json_option
+from .options import add_json_option, bounded, count
 from ..base.errors import UserError
 
 
@@ -29,8 +29,9 @@ def register(sub) -> None:
     p.add_argument("--map", default=None, metavar="F=R,..",
                    help="file channel = rig channel, comma-separated (FILE:channel for one file's channel); "
                         "default: the file channels named as rig channels")
-    p.add_argument("--rate", type=float, default=None, metavar="HZ", help="sample rate, for files that do not state it")
-    p.add_argument("--pretrigger", type=int, default=None, metavar="N",
+    p.add_argument("--rate", type=bounded(float, 1e-3, 1e10, "a sample rate in Hz"), default=None, metavar="HZ",
+                   help="sample rate, for files that do not state it")
+    p.add_argument("--pretrigger", type=count(2 ** 31 - 1, "a number of samples"), default=None, metavar="N",
                    help="samples before the trigger, for files that do not state it")
     p.add_argument("--units", default=None, metavar="R=U,..",
                    help="unit per rig channel for files that do not state it: m/s^2, g, N, V, mV, ... "
@@ -49,8 +50,9 @@ def run(args) -> dict:
     services.warn_calibration(res.get("calibration"), prefix="labid import")
     if getattr(args, "json", None) != "-":
         w = sys.stdout.write
-        w(f"imported {len(res['shots'])} {res['kind']} shot(s) into {res['out']}: "
-          f"{res['samples']} samples at {res['rate_hz']:g} Hz, {res['pretrigger']} before the trigger\n")
+        for part in res.get("parts") or [res]:       # several devices (a labid export UFF): one line each
+            w(f"imported {len(part['shots'])} {part['kind']} shot(s) into {res['out']}: "
+              f"{part['samples']} samples at {part['rate_hz']:g} Hz, {part['pretrigger']} before the trigger\n")
         for rig_ch, src in res["channels"].items():
             w(f"  {rig_ch:>10} <- {src} [{res['units'][rig_ch]}]\n")
         for note in res["notes"]:

@@ -21,7 +21,7 @@ from engine.laminate import PhysicsError
 from engine.plate import FEError, PlateModel
 from engine.plate.labels import mode_families
 
-from .options import add_json_option
+from .options import MAX_MODES, add_json_option, count
 from ..base.errors import UserError
 from ..inputs.specimen import load_specimen
 from ..base.summary import modes_table, stream
@@ -35,7 +35,8 @@ def register(sub) -> None:
                        description=__doc__.splitlines()[0])
     p.add_argument("spec", metavar="SPEC.toml",
                    help="specimen file, or a built-in name ('cfrp', 'aluminium')")
-    p.add_argument("--n", type=int, default=10, metavar="N", help="number of elastic modes (default 10)")
+    p.add_argument("--n", type=count(MAX_MODES, "a number of modes", 1), default=10, metavar="N",
+                   help="number of elastic modes (default 10)")
     p.add_argument("--mesh", default=None, metavar="NxM",
                    help="uniform mesh of N x M 16-node elements (default: the converged graded mesh)")
     p.add_argument("--shapes", action="store_true", help="add mode shapes (w0) on a grid")

@@ -12,6 +12,7 @@ from PySide6.QtWidgets import (QButtonGroup, QComboBox, QFileDialog, QFormLayout
                                QRadioButton, QSpinBox, QVBoxLayout, QWidget)
 
 from .. import services
+from ..base import atomic
 from ..base.errors import UserError
 from ..inputs.rig import Rig, rig_from_text
 from ..inputs.specimen import BUILTIN as SPECIMENS, Specimen, specimen_from_dict
@@ -167,9 +168,9 @@ class FileBox(QGroupBox):
             self._saveas_dialog()
             return self.path is not None and not self.modified()
         try:
-            Path(p).write_text(self.text())
-        except OSError as e:
-            self._message(f"{p}: cannot write ({e.strerror})", False)
+            atomic.write_text(p, self.text())          # temp + rename: never half a file (issue 27)
+        except UserError as e:
+            self._message(str(e), False)
             return False
         self.path, self.source, self.saved_text = str(p), str(p), self.text()
         self.combo.setCurrentIndex(self.combo.count() - 1)

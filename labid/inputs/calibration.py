@@ -31,6 +31,7 @@ from typing import Callable, Iterable
 from drivers.nidaq import TedsInfo, physical_name, read_teds
 
 from ..base.errors import UserError
+from .files import read_text_file
 from .rigtypes import Rig
 from .units import QUANTITY, sensitivity_si
 
@@ -107,13 +108,8 @@ def read_sheet(path: str | Path, rig: Rig | None = None) -> Calibration:
     """Read and validate a calibration sheet; with ``rig``, every row's channel must be one
     of its channels and its unit match the channel's kind."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise UserError("file not found; expected the calibration sheet (CSV) the rig file names",
-                        file=str(p)) from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise UserError(f"cannot read: {e}", file=str(p)) from None
+    # a regular file of at most 16 MiB (issue 27: every parser bounded; /dev/zero is refused)
+    text = read_text_file(p, "the calibration sheet (CSV) the rig file names").removeprefix("\ufeff")
     return parse_sheet(text, str(p), rig)
 
 

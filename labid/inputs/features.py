@@ -32,6 +32,7 @@ import numpy as np
 
 from engine.features import Features, ModalData, RigLayout, WaveData
 
+from ..base import atomic
 from ..base.errors import UserError
 from .files import read_json_file
 from .featurelimits import (LIMITS, MAX_SPECIMEN_BYTES, MODAL_KEYS, RIG_KEYS, SHAPES_KEYS, TOP_KEYS,
@@ -190,6 +191,15 @@ def _rig(r: Any, src: str) -> dict:
                 item[fld] = (within(_number(a[fld], k, src, nonneg=True), "mass_kg", k, src)
                              if fld == "mass_kg" else position(a[fld], k, src))
             items.append(item)
+        declared = [i for i, a in enumerate(items) if "mass_kg" in a]
+        if key == "accelerometers" and 0 < len(declared) < len(items):
+            # issue 27: a mass left out was read as 0 kg beside the others' grams; the fit could not
+            # match the measured peaks and identify took ten times its usual cost
+            i = next(i for i in range(len(items)) if i not in declared)
+            raise UserError(f"missing key while accelerometers {declared} declare theirs; expected the mass in kg "
+                            "of every accelerometer (0 for one that adds none): a sensor taken as massless "
+                            "shifts the model's frequencies and makes the fit fail",
+                            file=src, key=f"rig.accelerometers[{i}].mass_kg")
         out[key] = items
     if "wave_path_m" in r:
         out["wave_path_m"] = within(_number(r["wave_path_m"], "rig.wave_path_m", src, positive=True),
@@ -302,10 +312,7 @@ def write_features(path: str | Path, doc: Mapping, *, specimen_path: str | Path 
         sp = str(specimen_path)
         out["specimen"] = sp if sp in BUILTIN else os.path.relpath(Path(sp).resolve(), p.resolve().parent)
     text = features_text(out, str(p))
-    try:
-        p.write_text(text)
-    except OSError as e:
-        raise UserError(f"cannot write: {e.strerror}", file=str(p)) from None
+    atomic.write_text(p, text)                 # temp + rename: never half a file (issue 27)
     return json.loads(text)
 
 

@@ -8,7 +8,7 @@ the ``drivers.protocol`` ChannelConfig / Timing / Trigger objects.
 from __future__ import annotations
 
 import math
-import tomllib
+import re
 from importlib import resources
 from pathlib import Path
 from typing import Any, Mapping
@@ -16,10 +16,16 @@ from typing import Any, Mapping
 from drivers.protocol import ChannelConfig, Timing, Trigger
 
 from ..base.errors import UserError
-from .files import read_text_file
+from .files import parse_toml, read_text_file
 from .keys import check_keys as _keys   # the one key check (labid.inputs.keys)
 from .rigtypes import (BUILTIN, ROLES, KINDS, COUPLINGS, FILTERS, DEFAULT_MAX_RATE_HZ, FACES, SOURCE_KINDS,
                        WINDOWS, PAIRS, AntiAlias, DeviceSpec, WaveSensor, Burst, Source, SimSettings, Rig)
+
+#: a channel name: a table of the run file is named after it (HDF5: no '/', not '.'), and so
+#: are CSV columns and UFF records; the run file's own tables take the names in RESERVED_NAMES
+CHANNEL_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.+-]{0,63}")
+RESERVED_NAMES = ("timestamp", "overload", "backend", "software_version", "meta", "committed")
+
 
 def _err(src: str, key: str, msg: str) -> UserError:
     return UserError(msg, file=src, key=key)
@@ -94,6 +100,10 @@ def _channel(tab: Any, where: str, src: str, source: Source | None
         raise _err(src, where.rstrip("."), f"value {tab!r}: expected a [[channels]] table")
     _keys(tab, _CHANNEL_KEYS, where, src)
     name = _str(tab, "name", where, src)
+    if not CHANNEL_NAME.fullmatch(name) or name in RESERVED_NAMES:
+        raise _err(src, where + "name", f"value {name!r}: expected 1 to 64 letters, digits, '_', '.', '+' or "
+                   f"'-', not starting with '.', '+' or '-', and none of {list(RESERVED_NAMES)} (the run "
+                   "file's own tables)")
     kind = _str(tab, "kind", where, src, choices=KINDS, default="voltage")
     coupling = _str(tab, "coupling", where, src, choices=COUPLINGS,
                     default="IEPE" if kind in ("accelerometer", "force") else "DC")
@@ -183,6 +193,11 @@ def _device(name: str, tab: Any, src: str, wave_source: Source | None) -> tuple[
                        f"+/-{rng:g} V range of channel {ch!r}")
         trigger = Trigger(ch, level, _str(tt, "slope", tw, src, choices=("rising", "falling"),
                                           default="rising"))
+        tkind = next(c.kind for c in chans if c.name == ch)
+        if role == "hammer" and tkind == "voltage":
+            raise _err(src, tw + "channel", f"value {ch!r}: a voltage channel (its kind is \"voltage\", the "
+                       "default when none is given); expected the hammer's force channel (kind = \"force\") "
+                       "or an accelerometer")
     groups = tuple(tuple(c.name for c, a in zip(chans, acqs) if a == k) for k in range(max(acqs) + 1))
     if len(groups) > 1:
         empty = [k for k, g in enumerate(groups) if not g]
@@ -407,12 +422,7 @@ def read_rig_text(path: str | Path | None) -> tuple[str, str]:
 
 
 def rig_from_text(text: str, src: str = "<inline>") -> Rig:
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"malformed TOML ({e}); expected a rig file as in docs/rig-file.md",
-                        file=src) from None
-    return rig_from_dict(doc, src, text)
+    return rig_from_dict(parse_toml(text, src, "a rig file as in docs/rig-file.md"), src, text)
 
 
 def load_rig(path: str | Path | None = None) -> Rig:

@@ -10,7 +10,6 @@ Optional tables: ``[uncertainty]`` (standard uncertainties, SI; parsed by
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -19,7 +18,7 @@ from typing import Any, Mapping
 from engine.laminate import Laminate, Material, PhysicsError, Ply
 
 from ..base.errors import UserError
-from .files import read_text_file
+from .files import parse_toml, read_text_file
 from .keys import check_keys
 
 BUILTIN = {"cfrp": "cfrp_12ply.toml", "aluminium": "aluminium_3175.toml"}
@@ -260,11 +259,7 @@ def load_specimen(path: str | Path) -> Specimen:
     else:
         text = read_text_file(p, "a specimen TOML file")
         src = p
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise UserError(f"not valid TOML ({e})", file=src) from None
-    return specimen_from_dict(doc, src)
+    return specimen_from_dict(parse_toml(text, src, "a specimen file"), src)
 
 
 def specimen_text(spec: Specimen) -> str:

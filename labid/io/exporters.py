@@ -32,11 +32,16 @@ CSV tables (one header row, units in the column names or in a ``unit`` column):
   gap_after, score, delta_chi2, detectable, refitted, absorbed_fraction;
   ``diagnosis_residuals.csv``: feature, then per feature the diagnosis's columns (modality,
   set, residual_before, residual_after: whitened residuals, 1 = noise level).
+
+Every file is written atomically (``labid.base.atomic``: a temporary file beside it, renamed
+over it once complete and synced): a kill or a full disk leaves the old file or the new
+one, never a part (issue 27); a failure to write is one line naming the file.
 """
 from __future__ import annotations
 
 import csv
 import datetime as dt
+import io
 import json
 import math
 from pathlib import Path
@@ -44,6 +49,7 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from ..base import atomic
 from ..base.errors import UserError
 from ..inputs.rig import rig_from_text
 from ..inputs.units import loss_factors
@@ -194,12 +200,25 @@ def export_uff(run: str | Path, path: str | Path, binary: bool = True, spectra: 
     else:
         notes.append("no modes: the run has not been analysed (labid analyze) or holds no peak")
     path = Path(path)
-    try:
-        path.unlink(missing_ok=True)
-        pyuff.UFF(str(path)).write_sets(sets, mode="add")
-    except OSError as e:
-        raise UserError(f"cannot write: {e.strerror or e}", file=str(path), key="--uff") from None
+    with atomic.replacing(path, key="--uff") as tmp:
+        try:
+            pyuff.UFF(str(tmp)).write_sets(sets, mode="add")
+        except Exception as e:  # noqa: BLE001 - pyuff turns the OSError of a full disk into a bare Exception
+            cause = _os_error(e)
+            if cause is None:
+                raise
+            raise cause from None           # atomic.replacing: one line, the old file kept
     return {"uff": str(path), "datasets": len(sets), **counts, "notes": notes}
+
+
+def _os_error(e: BaseException | None) -> OSError | None:
+    """The OSError with an errno behind ``e`` (itself, or its cause or context), if any."""
+    seen = 0
+    while e is not None and seen < 10:
+        if isinstance(e, OSError) and e.errno is not None:
+            return e
+        e, seen = e.__cause__ or e.__context__, seen + 1
+    return None
 
 
 def _damping_columns(feats: Mapping, n: int) -> tuple[list[float] | None, list[str] | None]:
@@ -224,15 +243,13 @@ def _features(analysis: Any) -> dict | None:
 
 # ------------------------------------------------------------------ CSV
 def _write(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> str:
-    try:
-        with path.open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(header)
-            for r in rows:
-                w.writerow(["" if v is None else (repr(float(v)) if isinstance(v, (float, np.floating)) else v)
-                            for v in r])
-    except OSError as e:
-        raise UserError(f"cannot write: {e.strerror or e}", file=str(path), key="--csv") from None
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(header)
+    for r in rows:
+        w.writerow(["" if v is None else (repr(float(v)) if isinstance(v, (float, np.floating)) else v)
+                    for v in r])
+    atomic.write_text(path, buf.getvalue(), key="--csv")
     return str(path)
 
 

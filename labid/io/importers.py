@@ -8,6 +8,12 @@ the sensitivity from the calibration sheet when the rig names one) and appends t
 through ``RunStore`` (``declare`` + ``append_shot``), so that ``labid analyze`` reads them
 as it reads acquired shots.
 
+Files: a folder stands for the recordings in it (the files of a known suffix, in name
+order). Without ``--map``, the file channels named as rig channels (a CSV column with or
+without its unit suffix) are imported; when they belong to several devices (a UFF file
+written by ``labid export`` holds hammer and wave shots) each device's become shots of
+its kind, all written in one session once every check has passed.
+
 Shots. Each map key is looked up in every file, in the order given: the n-th record of
 every mapped channel makes shot n. Several files on a common trigger (one channel or a
 few each) make one shot; files holding the same channels (one hit each), or a file of
@@ -41,7 +47,7 @@ from ..inputs.rig import Rig, load_rig
 from ..inputs.specimen import Specimen, load_specimen, specimen_text
 from ..store import RunStore
 from ..inputs import calibration as calib
-from .readers import Column, read_columns, split_header
+from .readers import FORMATS, Column, read_columns, split_header
 from ..inputs.units import QUANTITY, known_units, parse_unit, unit_matches
 
 #: relative tolerance between a file's sampling rate and the rig's (files keep 6 digits or fewer)
@@ -66,11 +72,44 @@ class ImportResult:
     units: dict[str, str]
     notes: list[str] = field(default_factory=list)
     calibration: dict = field(default_factory=dict)
+    parts: list["ImportResult"] = field(default_factory=list)
 
     def to_dict(self) -> dict:
-        return {"out": self.out, "kind": self.kind, "shots": self.shots, "channels": self.channels,
-                "rate_hz": self.rate_hz, "samples": self.samples, "pretrigger": self.pretrigger,
-                "units": self.units, "notes": self.notes, "calibration": self.calibration}
+        out = {"out": self.out, "kind": self.kind, "shots": self.shots, "channels": self.channels,
+               "rate_hz": self.rate_hz, "samples": self.samples, "pretrigger": self.pretrigger,
+               "units": self.units, "notes": self.notes, "calibration": self.calibration}
+        if self.parts:             # several devices in one import: each kind's own figures
+            out["parts"] = [p.to_dict() for p in self.parts]
+        return out
+
+
+@dataclass
+class _Plan:
+    """The shots of one device, checked and converted, ready to be written."""
+
+    kind: str
+    chans: tuple
+    timing: Timing
+    trigger: object
+    records: list
+    keys: dict
+    units: dict
+    notes: list
+
+
+def expand_files(files: Sequence[str | Path]) -> list[Path]:
+    """The recordings named: a folder stands for its files of a known suffix, in name order."""
+    out: list[Path] = []
+    for f in map(Path, files):
+        if f.is_dir():
+            inside = sorted(p for p in f.iterdir() if p.is_file() and p.suffix.lower() in FORMATS)
+            if not inside:
+                raise UserError(f"a folder holding no recording; expected files ending in {sorted(FORMATS)}",
+                                file=str(f))
+            out += inside
+        else:
+            out.append(f)
+    return out
 
 
 def parse_pairs(text: str | None, option: str) -> list[tuple[str, str]]:
@@ -115,7 +154,7 @@ def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specim
                    units_text: str | None = None, kind: str | None = None, crop: bool = False) -> ImportResult:
     """Import ``files`` into the run ``out`` (created or appended to) under ``rig`` and
     ``specimen``; see the module docstring. UserError (one line) on any mismatch."""
-    files = [Path(f) for f in files]
+    files = expand_files(files)
     if not files:
         raise UserError("no file to import; expected one or more recordings", key="FILES")
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0):
@@ -130,20 +169,64 @@ def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specim
     columns = {f: read_columns(f) for f in files}
     rig_chans = {c.name: (d, c) for d in rig.devices for c in d.channels}
 
-    # -- the channel map
+    # -- the channel map (without --map: one group per device whose channels the files name)
     pairs = parse_pairs(map_text, "--map")
-    if not pairs:
-        seen = []
-        for c in (c for f in files for c in columns[f]):
-            if c.name in rig_chans and c.name not in seen:
-                seen.append(c.name)
-        if not seen:
-            avail = sorted({c.qualified for f in files for c in columns[f]})
-            raise UserError(f"no file channel is named like a rig channel; expected --map 'file_channel=rig_channel,"
-                            f"...' (file channels: {', '.join(avail[:12])}; rig channels: {', '.join(rig_chans)})",
-                            key="--map")
-        pairs = [(n, n) for n in seen]
-        notes.append("no --map: file channels named as rig channels (" + ", ".join(seen) + ")")
+    groups = [pairs] if pairs else _auto_map(files, columns, rig, rig_chans, kind, notes)
+    plans = [_plan(g, files, columns, rig, rig_chans, cal, kind, rate_hz, pretrigger, units_text, crop,
+                   len(groups) > 1) for g in groups]
+    out = Path(out)
+    results = []
+    with RunStore(out, "a") as st:
+        st.write_config(specimen_text(specimen), rig.text)
+        if cal is not None and cal.text:
+            st.write_config_text("calibration_csv", cal.text)
+        for pl in plans:
+            st.declare(pl.kind, pl.chans, pl.timing, pl.trigger)
+            names = [st.append_shot(rec, pl.kind) for rec in pl.records]
+            results.append(ImportResult(str(out), pl.kind, names, {t: pl.keys[t] for t in pl.keys},
+                                        pl.timing.rate_hz, pl.timing.samples, pl.timing.pretrigger, pl.units,
+                                        pl.notes, calib.status(cal)))
+    if len(results) == 1:
+        res = results[0]
+        res.notes = notes + res.notes
+        return res
+    first = results[0]
+    return ImportResult(str(out), "+".join(r.kind for r in results), [n for r in results for n in r.shots],
+                        {t: k for r in results for t, k in r.channels.items()}, first.rate_hz, first.samples,
+                        first.pretrigger, {t: u for r in results for t, u in r.units.items()},
+                        notes + [n for r in results for n in r.notes], calib.status(cal), results)
+
+
+def _auto_map(files: list[Path], columns: dict, rig: Rig, rig_chans: dict, kind: str | None,
+              notes: list[str]) -> list[list[tuple[str, str]]]:
+    """The channel map without --map: file channels named as rig channels (a CSV header
+    with or without its unit suffix), one group per device (only ``kind``'s when given)."""
+    seen: dict[str, str] = {}
+    for c in (c for f in files for c in columns[f]):
+        for name in (c.name, split_header(c.name)[0]):
+            if name in rig_chans and name not in seen.values() and (
+                    kind is None or rig_chans[name][0].role == kind):
+                seen[c.name] = name
+                break
+    if not seen:
+        avail = sorted({c.qualified for f in files for c in columns[f]})
+        raise UserError(f"no file channel is named like a rig channel; expected --map 'file_channel=rig_channel,"
+                        f"...' (file channels: {', '.join(avail[:12])}; rig channels: {', '.join(rig_chans)})",
+                        key="--map")
+    notes.append("no --map: file channels named as rig channels (" + ", ".join(
+        k if k == t else f"{k} -> {t}" for k, t in seen.items()) + ")")
+    by_dev: dict[str, list[tuple[str, str]]] = {}
+    for key, target in seen.items():
+        by_dev.setdefault(rig_chans[target][0].name, []).append((key, target))
+    return [by_dev[d.name] for d in rig.devices if d.name in by_dev]
+
+
+def _plan(pairs: list[tuple[str, str]], files: list[Path], columns: dict, rig: Rig, rig_chans: dict, cal,
+          kind: str | None, rate_hz: float | None, pretrigger: int | None, units_text: str | None,
+          crop: bool, several: bool = False) -> _Plan:
+    """The checked and converted shots of one device from the channel map ``pairs``
+    (``several``: one of several devices imported together)."""
+    notes: list[str] = []
     found: dict[str, list[Column]] = {}
     keys: dict[str, str] = {}
     for key, target in pairs:
@@ -210,7 +293,7 @@ def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specim
                      "--pretrigger)")
     unit_opt = dict(parse_pairs(units_text, "--units"))
     for u in unit_opt:
-        if u not in found:
+        if u not in found and not (several and u in rig_chans):   # several: another device's channel
             raise UserError(f"value {u!r}: not a mapped rig channel; expected one of {list(found)}", key="--units")
     factors: dict[tuple[str, int], tuple[str, float]] = {}
     units_used: dict[str, str] = {}
@@ -238,6 +321,13 @@ def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specim
             units_used[t] = u
 
     # -- lengths and alignment on the trigger
+    for (t, i), p in pres.items():
+        c = found[t][i]
+        if p >= c.data.size:
+            src = "given" if pre_opt is not None else "stated" if c.t0_s is not None else "the rig's"
+            raise UserError(f"pre-trigger {p} samples ({src}), but the record holds {c.data.size}; expected the "
+                            "trigger within the record (--pretrigger below its length)",
+                            file=str(c.file), key=c.qualified)
     spans = {k: (pres[k], found[k[0]][k[1]].data.size - pres[k]) for k in pres}
     if len(set(spans.values())) != 1:
         if not crop:
@@ -293,17 +383,7 @@ def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specim
                               timestamp=float(stamp), backend=f"import:{'+'.join(sorted(fmt))}"[:32],
                               meta=_fit_meta(meta)))
     notes += over_notes
-    out = Path(out)
-    names = []
-    with RunStore(out, "a") as st:
-        st.write_config(specimen_text(specimen), rig.text)
-        if cal is not None and cal.text:
-            st.write_config_text("calibration_csv", cal.text)
-        st.declare(kind, chans, timing, trigger)
-        for rec in records:
-            names.append(st.append_shot(rec, kind))
-    return ImportResult(str(out), kind, names, {t: keys[t] for t in found}, rate, n, before, units_used,
-                        notes, calib.status(cal))
+    return _Plan(kind, chans, timing, trigger, records, {t: keys[t] for t in found}, units_used, notes)
 
 
 def _fit_meta(meta: dict) -> dict:

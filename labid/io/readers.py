@@ -15,11 +15,19 @@ each where the file states it (None otherwise).
 A time axis starting at zero says nothing about a pre-trigger (most writers start every
 record at zero): only a negative start gives one. UFF58 keeps the abscissa to 6 digits, so
 rates read from files are compared with the rig's to 1e-4 (``labid.io.importers``).
+
+CSV as European labs write it is read too: ``;`` between columns and a decimal comma
+(``1,5;2,25``). A file a library cannot read is one ``UserError`` naming it (whatever the
+library raised), and the libraries' own warnings (scipy's WavFileWarning, npTDMS's log)
+are kept off the console (issue 26 item 8, issue 27).
 """
 from __future__ import annotations
 
+import contextlib
 import csv
+import logging
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,14 +83,22 @@ def file_format(path: str | Path) -> str:
 def read_columns(path: str | Path) -> list[Column]:
     """Every channel of every record in ``path`` (format from the suffix)."""
     p = Path(path)
+    if p.is_dir():
+        raise UserError("a folder; expected a recording (TDMS, UFF58, WAV, MAT or CSV) or a folder of them "
+                        "given to labid import", file=str(p))
     if not p.is_file():
         raise UserError("file not found; expected a recording (TDMS, UFF58, WAV, MAT or CSV)", file=str(p))
     fmt = file_format(p)
-    cols = {"tdms": read_tdms, "uff": read_uff58, "wav": read_wav, "mat": read_mat, "csv": read_csv}[fmt](p)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")       # a damaged file's casts: the checks below say what is wrong
+        cols = {"tdms": read_tdms, "uff": read_uff58, "wav": read_wav, "mat": read_mat, "csv": read_csv}[fmt](p)
     if not cols:
         raise UserError("holds no channel of samples", file=str(p))
     for c in cols:
         c.fmt = fmt
+        if not np.all(np.isfinite(c.data)):
+            raise UserError(f"{int(np.sum(~np.isfinite(c.data)))} sample(s) not finite (NaN or infinite); "
+                            "expected numbers", file=str(p), key=c.qualified)
     return cols
 
 
@@ -95,35 +111,61 @@ def _rate(inc: float | None, p: Path, key: str) -> float | None:
     return 1.0 / inc
 
 
+@contextlib.contextmanager
+def _quiet_nptdms():
+    """npTDMS logs its warnings on stderr through its own handler: silenced while reading
+    (the one line of the error, if any, says what went wrong)."""
+    from nptdms.log import log_manager  # noqa: PLC0415 - only when a TDMS file is imported
+    level = log_manager.log_level
+    log_manager.set_level(logging.ERROR)
+    try:
+        yield
+    finally:
+        log_manager.set_level(level)
+
+
 # ------------------------------------------------------------------ TDMS (npTDMS)
 def read_tdms(p: Path) -> list[Column]:
-    """NI TDMS: every channel of every group (npTDMS applies the DAQmx scaling it finds)."""
+    """NI TDMS: every numeric channel of every group (npTDMS applies the DAQmx scaling it
+    finds); channels of text or timestamps are left out."""
     from nptdms import TdmsFile  # noqa: PLC0415 - only when a TDMS file is imported
-    try:
-        f = TdmsFile.read(p)
-    except Exception as e:  # noqa: BLE001 - npTDMS raises bare ValueError/KeyError on bad files
-        raise UserError(f"not a readable TDMS file ({type(e).__name__}: {e})", file=str(p)) from None
     out = []
-    for g in f.groups():
-        for ch in g.channels():
-            props = ch.properties
-            data = np.asarray(ch[:], dtype=float)
-            if data.ndim != 1 or data.size < 2:
-                continue
-            key = f"{g.name}/{ch.name}"
-            rate = _rate(props.get("wf_increment"), p, f"{key}: wf_increment")
-            off = props.get("wf_start_offset")
-            t0 = float(off) if off is not None and rate is not None and float(off) != 0.0 else None
-            unit = props.get("unit_string") or props.get("NI_UnitDescription") or None
-            ts = props.get("wf_start_time")
-            stamp = None
-            if ts is not None:
-                try:
-                    stamp = float((np.datetime64(ts, "ns") - np.datetime64(0, "s")) / np.timedelta64(1, "s"))
-                except (TypeError, ValueError):
-                    stamp = None
-            out.append(Column(p, ch.name, key, data, rate, t0, str(unit) if unit else None, stamp))
+    with _quiet_nptdms():
+        try:
+            f = TdmsFile.read(p)
+            chans = [(g, ch, ch[:]) for g in f.groups() for ch in g.channels()]
+        except Exception as e:  # noqa: BLE001 - npTDMS raises bare ValueError/KeyError on bad files
+            raise UserError(f"not a readable TDMS file ({type(e).__name__}: {e})", file=str(p)) from None
+    for g, ch, raw in chans:
+        props = ch.properties
+        raw = np.asarray(raw)
+        if raw.dtype.kind not in "iufb" or raw.ndim != 1 or raw.size < 2:
+            continue
+        data = raw.astype(float)
+        key = f"{g.name}/{ch.name}"
+        rate = _rate(_number(props.get("wf_increment"), p, f"{key}: wf_increment"), p, f"{key}: wf_increment")
+        off = _number(props.get("wf_start_offset"), p, f"{key}: wf_start_offset")
+        t0 = float(off) if off is not None and rate is not None and float(off) != 0.0 else None
+        unit = props.get("unit_string") or props.get("NI_UnitDescription") or None
+        ts = props.get("wf_start_time")
+        stamp = None
+        if ts is not None:
+            try:
+                stamp = float((np.datetime64(ts, "ns") - np.datetime64(0, "s")) / np.timedelta64(1, "s"))
+            except (TypeError, ValueError):
+                stamp = None
+        out.append(Column(p, ch.name, key, data, rate, t0, str(unit) if unit else None, stamp))
     return out
+
+
+def _number(v, p: Path, key: str) -> float | None:
+    """A numeric property of a file (None if absent); UserError for text or the like."""
+    if v is None:
+        return None
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        raise UserError(f"value {v!r}: expected a number", file=str(p), key=key) from None
 
 
 # ------------------------------------------------------------------ UFF58 (pyuff)
@@ -169,9 +211,14 @@ def read_wav(p: Path) -> list[Column]:
     given by --units (e.g. 2.5V)."""
     from scipy.io import wavfile  # noqa: PLC0415 - only when a WAV file is imported
     try:
-        rate, x = wavfile.read(p)
-    except (ValueError, OSError, EOFError) as e:
-        raise UserError(f"not a readable WAV file ({e})", file=str(p)) from None
+        with warnings.catch_warnings():       # WavFileWarning on chunks it skips (float WAVs' 'fact')
+            warnings.simplefilter("ignore", wavfile.WavFileWarning)
+            rate, x = wavfile.read(p)
+    except Exception as e:  # noqa: BLE001 - scipy's reader raises many kinds on a damaged file
+        raise UserError(f"not a readable WAV file ({type(e).__name__}: {e})", file=str(p)) from None
+    if x.size == 0 or not rate > 0:
+        raise UserError(f"holds no samples ({x.shape[0] if x.ndim else 0} frames at {rate} Hz); expected a "
+                        "recording", file=str(p))
     if x.dtype.kind == "u":
         x = (x.astype(float) - 128.0) / 128.0
     elif x.dtype.kind == "i":
@@ -193,8 +240,8 @@ def read_mat(p: Path) -> list[Column]:
     except NotImplementedError:
         raise UserError("MAT v7.3 (HDF5) is not read by scipy.io; expected a file saved with -v7",
                         file=str(p)) from None
-    except (ValueError, OSError, TypeError) as e:
-        raise UserError(f"not a readable MAT file ({e})", file=str(p)) from None
+    except Exception as e:  # noqa: BLE001 - scipy.io raises MatReadError, ValueError... on a damaged file
+        raise UserError(f"not a readable MAT file ({type(e).__name__}: {e})", file=str(p)) from None
     num = {k: np.asarray(v) for k, v in m.items() if not k.startswith("__")
            and isinstance(v, (np.ndarray, int, float)) and np.asarray(v).dtype.kind in "iuf"}
     rate = t0 = None
@@ -251,6 +298,9 @@ def _time_axis(t: np.ndarray, factor: float, p: Path, key: str) -> tuple[float, 
     """(interval s, start s) of an evenly spaced time column (its values may be rounded to
     the digits printed: each within 1 % of an interval of the fitted line)."""
     t = np.asarray(t, float) * factor
+    if t.size < 2 or not np.all(np.isfinite(t)):
+        raise UserError(f"{t.size} time value(s), or not all finite; expected at least two evenly spaced times",
+                        file=str(p), key=key)
     k = np.arange(t.size)
     dt, start = np.polyfit(k, t, 1)
     if not dt > 0 or np.max(np.abs(t - (start + dt * k))) > 0.01 * dt:
@@ -270,25 +320,33 @@ def read_csv(p: Path) -> list[Column]:
     body = [(i, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     if not body:
         raise UserError("no data rows", file=str(p))
-    try:
-        delim = csv.Sniffer().sniff(body[min(1, len(body) - 1)][1], delimiters=",;\t ").delimiter
-    except csv.Error:
-        delim = ","
+    sample = body[min(1, len(body) - 1)][1]
+    delim = ";" if ";" in sample else "\t" if "\t" in sample else None
+    if delim is None:
+        try:
+            delim = csv.Sniffer().sniff(sample, delimiters=",\t ").delimiter
+        except csv.Error:
+            delim = ","
     first = next(csv.reader([body[0][1]], delimiter=delim, skipinitialspace=True))
+    comma = delim != ","                         # a decimal comma is possible: '1,5;2,25'
     header = None
     try:
-        [float(v) for v in first]
+        [float(v.replace(",", ".") if comma else v) for v in first]
         rows = body
     except ValueError:
         header = [h.strip() for h in first]
         rows = body[1:]
-    if not rows:
-        raise UserError("no data rows after the header", file=str(p))
+    if len(rows) < 2:
+        raise UserError(f"{len(rows)} data row(s); expected at least two samples per channel", file=str(p))
+    lines = [ln.replace(",", ".") if comma else ln for _, ln in rows]
     try:
-        a = np.loadtxt([ln for _, ln in rows], delimiter=None if delim == " " else delim, ndmin=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # numpy's 'empty input' and the like: the error says it
+            a = np.loadtxt(lines, delimiter=None if delim == " " else delim, ndmin=2)
     except ValueError as e:
-        raise UserError(f"not a table of numbers ({e}); expected one numeric column per channel",
-                        file=str(p)) from None
+        raise UserError(f"not a table of numbers ({str(e).splitlines()[0] if str(e) else e}); expected one "
+                        "numeric column per channel (a decimal point, or a decimal comma with ';' between "
+                        "columns)", file=str(p)) from None
     names = header or [str(j + 1) for j in range(a.shape[1])]
     if len(names) != a.shape[1]:
         raise UserError(f"{len(names)} header names for {a.shape[1]} columns; expected one name per column",

@@ -22,6 +22,9 @@ from pathlib import Path
 
 import h5py
 
+from ..base.atomic import temp_beside
+from .space import is_write_failure, poison, reserved, trim_file
+
 
 def is_consistency_flag_error(e: OSError) -> bool:
     """True if ``e`` is h5py refusing a file whose "open for writing" flags are set."""
@@ -83,19 +86,22 @@ def cleared_copy(path: Path) -> Path:
     completed. Superblock v2/v3: flags at byte 11, lookup3 checksum after
     12 + 4 * sizeof(offsets) bytes.
     """
-    tmp = path.with_name(path.name + ".unlocked")
-    shutil.copyfile(path, tmp)
-    with open(tmp, "r+b") as fh:
-        head = bytearray(fh.read(64))
-        if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] not in (2, 3):
-            tmp.unlink()
-            raise OSError(f"{path}: not an HDF5 file with a version 2/3 superblock")
-        n = 12 + 4 * head[9]
-        head[11] = 0
-        fh.seek(11)
-        fh.write(b"\x00")
-        fh.seek(n)
-        fh.write(lookup3(bytes(head[:n])).to_bytes(4, "little"))
+    tmp = temp_beside(path, ".unlocked")
+    try:
+        shutil.copyfile(path, tmp)
+        with open(tmp, "r+b") as fh:
+            head = bytearray(fh.read(64))
+            if head[:8] != b"\x89HDF\r\n\x1a\n" or head[8] not in (2, 3):
+                raise OSError(f"{path}: not an HDF5 file with a version 2/3 superblock")
+            n = 12 + 4 * head[9]
+            head[11] = 0
+            fh.seek(11)
+            fh.write(b"\x00")
+            fh.seek(n)
+            fh.write(lookup3(bytes(head[:n])).to_bytes(4, "little"))
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return tmp
 
 
@@ -109,21 +115,36 @@ def open_flagged(path: Path) -> tuple[h5py.File, Path | None]:
 
 
 def repair(path: Path, opener=None) -> None:
-    """Rewrite a file left open by a killed writer into a clean copy (``RUN.h5.repair``,
-    renamed over the run once complete; removed on failure). ``opener(path) -> h5py.File``
-    reads the flagged file (default ``open_flagged``); the caller holds the writer lock."""
-    tmp = path.with_name(path.name + ".repair")
-    unlocked = None
+    """Rewrite a file left open by a killed writer into a clean copy (``.RUN.h5.XXXXXXXX.repair``,
+    renamed over the run once complete; removed on failure), its bytes reserved first
+    (``space.reserved``). ``opener(path) -> h5py.File`` reads the flagged file (default
+    ``open_flagged``); the caller holds the writer lock."""
+    unlocked = tmp = None
     if opener is None:
         src, unlocked = open_flagged(path)
     else:
         src = opener(path)
     try:
-        with h5py.File(tmp, "w", libver="latest") as dst:
-            copy_attrs(src, dst)
-            for name in src:
-                src.copy(src[name], dst, name)
-            dst.flush()
+        tmp = temp_beside(path, ".repair")
+        dst = h5py.File(tmp, "w", libver="latest", locking=False)
+        try:
+            with reserved(dst, 2 * path.stat().st_size, path, "repairing the run file", trim=False):
+                copy_attrs(src, dst)
+                for name in src:
+                    src.copy(src[name], dst, name)
+                dst.flush()
+                dst.close()
+        except BaseException as e:
+            if is_write_failure(e):
+                poison(dst)
+            elif dst.id.valid:
+                try:
+                    dst.close()
+                except Exception:  # noqa: BLE001 - the copy is discarded anyway
+                    poison(dst)
+            raise
+        trim_file(tmp)
+        shutil.copymode(path, tmp)               # the run keeps its permissions (mkstemp: 0600)
         os.replace(tmp, path)
     finally:
         view = getattr(src, "_labid_view", None)
@@ -132,4 +153,5 @@ def repair(path: Path, opener=None) -> None:
             view.close()
         if unlocked:
             unlocked.unlink()
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)

@@ -26,13 +26,13 @@ Crash safety: shots are written in HDF5 SWMR mode (``libver='latest'``), whose o
 writes keep the file readable whatever the moment the writer dies. A shot counts only once its row
 of ``committed`` is written and flushed; rows past it (a shot cut short) are dropped on reopening.
 
-One writer at a time (issue 15): an ``"a"`` open takes the advisory lock
-``RUN.h5.lock`` (``labid.store.lock``) and a second writer is refused in one line
-naming the holder. Results (``write_group``) are written into a copy of the file
-that replaces it atomically (``os.replace``) once complete and synced: a kill at
-any moment leaves either the old file or the new one, never a half-written
-results group. Under the lock, stale temporary files of a killed writer
-(``.new``, ``.repair``, ``.results``, ``.unlocked``) are removed.
+One writer at a time (issue 15): an ``"a"`` open takes the lock ``RUN.h5.lock``
+(``labid.store.lock``); a second writer, under any name, is refused in one line naming the
+holder. Results (``write_group``) go into a synced copy renamed over the file: a kill leaves
+the old file or the new one. Temporary files are ``mkstemp`` names beside the run, stale
+ones removed under the lock; a run path that is a symbolic link is refused for writing.
+Full disk (issue 27): the bytes of every HDF5 write are reserved first (``labid.store.space``):
+a full disk or a file-size limit refuses it in one line; the committed shots are kept.
 
 A ``"r"`` open never writes, repairs or copies (``labid.store.readonly``): it
 reads plainly, through SWMR (a live writer), or through a view with the flags a
@@ -43,9 +43,9 @@ A damaged file (not HDF5, bit flips, missing groups, bad attributes) is a
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
-import time
 import tomllib
 from dataclasses import asdict
 from importlib.metadata import PackageNotFoundError, version
@@ -57,17 +57,22 @@ import numpy as np
 
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
+from ..base.atomic import default_mode, temp_beside
 from ..base.errors import UserError
 from ..base.jsonio import to_jsonable
 from .h5repair import is_consistency_flag_error, repair
-from .lock import WriterLock
+from .lock import WriterLock, relock
+from .probe import in_child, probe
 from .readonly import open_read_only
-from .tables import read_records
-from .tree import decode_result, json_default, read_json_copy, read_tree, replace_group, write_tree
-from .validate import check_run, damaged, reading
+from .tables import append_row, create_table, drop_uncommitted, init_file, read_records
+from .space import is_write_failure, poison, remove_stale, reserved, trim_file, write_failed
+from .tree import decode_result, json_default, not_written, read_json_copy, read_tree, replace_group, write_tree
+from .schema import check_result
+from .validate import TABLES, check_run, damaged, reading
 
 #: suffixes of the temporary files a writer makes beside the run (removed under the lock)
 TEMP_SUFFIXES = (".new", ".repair", ".results", ".unlocked")
+_STRUCTURE_BYTES = 64 << 10      # reserved for a structure change (tables, configuration)
 
 SCHEMA = 1
 KINDS = ("hammer", "wave")
@@ -112,6 +117,7 @@ class RunStore:
                 raise UserError("file not found; expected a run file (HDF5)", file=str(self.path))
             if not self.path.is_file():
                 raise UserError("not a regular file; expected a run file (HDF5)", file=str(self.path))
+            probe(self.path)          # a file the library would loop on: refused (store.probe)
             try:
                 self._f = open_read_only(self.path)
                 self._live = bool(self._f.swmr_mode)
@@ -123,6 +129,10 @@ class RunStore:
                     raise
                 raise damaged(self.path, e) from None
             return
+        if self.path.is_symlink():
+            raise UserError(f"a symbolic link (to {os.readlink(self.path)!r}); expected the run file itself "
+                            "(labid never writes through a link it did not create: give the file's own "
+                            "path)", file=str(self.path))
         if self.path.exists() and not self.path.is_file():
             raise UserError("not a regular file; expected a run file (HDF5)", file=str(self.path))
         try:
@@ -140,41 +150,51 @@ class RunStore:
             raise damaged(self.path, e) from None
 
     def _open_writer(self) -> None:
-        self._remove_stale()
+        remove_stale(self.path, TEMP_SUFFIXES)
         if self.path.exists():
+            probe(self.path)
             self._f = self._open_append()
             self._check_schema()
             check_run(self._f, str(self.path))
-            self._drop_uncommitted()
+            with self._writing("opening the run"):
+                drop_uncommitted(self._f)
         else:                      # created complete under a temporary name, then renamed
-            tmp = self.path.with_name(self.path.name + ".new")
+            tmp = temp_beside(self.path, ".new")
             try:
-                with h5py.File(tmp, "w", libver="latest") as f:
-                    self._init(f, self.path.name)
+                f = h5py.File(tmp, "w", libver="latest", locking=False)
+                try:
+                    with reserved(f, _STRUCTURE_BYTES, self.path, "creating the run file", trim=False):
+                        init_file(f, self.path.name, SCHEMA, f"labid {software_version()}")
+                        f.flush()
+                        f.close()
+                except BaseException as e:
+                    poison(f)              # never closed after a failure: HDF5 may not survive it
+                    if is_write_failure(e):
+                        raise write_failed(self.path, e, "creating the run file") from None
+                    raise
+                trim_file(tmp)
+                os.chmod(tmp, default_mode())   # mkstemp made it 0600; a run file is shared as any file
                 os.replace(tmp, self.path)
             finally:
                 tmp.unlink(missing_ok=True)
+            relock(self.path)
             self._f = h5py.File(self.path, "a", libver="latest", locking=False)
 
-    def _remove_stale(self) -> None:
-        """Temporary files a killed writer left beside the run (we hold the lock: none is live)."""
-        for suffix in TEMP_SUFFIXES:
-            self.path.with_name(self.path.name + suffix).unlink(missing_ok=True)
-
-    @staticmethod
-    def _init(f: h5py.File, name: str) -> None:
-        """Root attributes and top-level groups of a new run file."""
-        a = f.attrs
-        a["NX_class"] = "NXroot"
-        a["labid_schema"] = SCHEMA
-        a["creator"] = f"labid {software_version()}"
-        a["file_name"] = name
-        a["file_time"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-        a["HDF5_Version"] = h5py.version.hdf5_version
-        a["h5py_version"] = h5py.version.version
-        for name, cls in (("config", "NXcollection"), ("shots", "NXentry"),
-                          ("results", "NXcollection")):
-            f.create_group(name).attrs["NX_class"] = cls
+    @contextlib.contextmanager
+    def _writing(self, what: str):
+        """Context of HDF5 writes: one that failed (a full disk despite the reservation)
+        leaves the file unclosable: its objects are kept alive (``space.poison``), the lock
+        held until the process ends, and the failure is one ``UserError``."""
+        try:
+            yield
+        except UserError:
+            raise
+        except BaseException as e:
+            if not is_write_failure(e):
+                raise
+            poison(self._f, getattr(self, "_handles", None), self._lock)
+            self._f, self._handles, self._lock = None, (None,), None
+            raise write_failed(self.path, e, what) from None
 
     # -- opening -------------------------------------------------------
     def _open_append(self) -> h5py.File:
@@ -186,6 +206,7 @@ class RunStore:
             if not is_consistency_flag_error(e):
                 raise damaged(self.path, e) from None
         repair(self.path, open_read_only)
+        relock(self.path)
         return h5py.File(self.path, "a", libver="latest", locking=False)
 
     def _check_schema(self) -> None:
@@ -197,16 +218,6 @@ class RunStore:
         if not ok:
             raise UserError(f"labid_schema {v!r}: expected a labid run file with schema <= {SCHEMA}",
                             file=str(self.path))
-
-    def _drop_uncommitted(self) -> None:
-        """Truncate every table to its committed rows (a shot cut short by a kill)."""
-        for kind in list(self._f["shots"]):
-            g = self._f["shots"][kind]
-            n = g["committed"].shape[0]
-            for name, ds in g.items():
-                if ds.maxshape[0] is None and ds.shape[0] != n:
-                    ds.resize(n, axis=0)
-        self._f.flush()
 
     def _normal(self) -> h5py.File:
         """The file in normal (structure-changing) mode."""
@@ -267,25 +278,34 @@ class RunStore:
                                     "expected the same configuration to resume (or a new --out file)",
                                     file=str(self.path), key=f"config/{key}")
             return
-        f = self._normal()
-        cfg = f["config"]
-        for key, text in (("specimen_toml", specimen_toml), ("rig_toml", rig_toml)):
-            ds = cfg.create_dataset(key, data=text, dtype=h5py.string_dtype())
-            ds.attrs["mime_type"] = "application/toml"
-        for key, text in (("specimen", specimen_toml), ("rig", rig_toml)):
-            try:
-                parsed = tomllib.loads(text)
-            except tomllib.TOMLDecodeError:
-                parsed = {}
-            write_tree(cfg.create_group(key), parsed)
-        f.flush()
+        with self._structure("storing the configuration", 4 * (len(specimen_toml) + len(rig_toml))) as f:
+            cfg = f["config"]
+            for key, text in (("specimen_toml", specimen_toml), ("rig_toml", rig_toml)):
+                ds = cfg.create_dataset(key, data=text, dtype=h5py.string_dtype())
+                ds.attrs["mime_type"] = "application/toml"
+            for key, text in (("specimen", specimen_toml), ("rig", rig_toml)):
+                try:
+                    parsed = tomllib.loads(text)
+                except tomllib.TOMLDecodeError:
+                    parsed = {}
+                write_tree(cfg.create_group(key), parsed)
+            f.flush()
 
     def write_config_text(self, name: str, text: str) -> None:
         """Store or replace the text ``/config/<name>`` (e.g. ``calibration_csv``, the calibration sheet)."""
         if self.config_text(name) != text:
-            self._normal()["config"].pop(name, None)
-            self._f["config"][name] = text
-            self._f.flush()
+            with self._structure(f"storing /config/{name}", 2 * len(text)) as f:
+                f["config"].pop(name, None)
+                f["config"][name] = text
+                f.flush()
+
+    @contextlib.contextmanager
+    def _structure(self, what: str, nbytes: int = 0):
+        """Context of a structure change in normal mode: the file (``_normal``), with
+        ``nbytes`` reserved and write failures made one line (``_writing``)."""
+        f = self._normal()
+        with self._writing(what), reserved(f, nbytes + _STRUCTURE_BYTES, self.path, what):
+            yield f
 
     def config_text(self, name: str) -> str:
         """The text ``/config/<name>`` ('' if absent)."""
@@ -317,6 +337,10 @@ class RunStore:
         to better than half a step: ``labid.workflows.acquisition.sample_dtype``)."""
         if kind not in KINDS:
             raise ValueError(f"shot kind {kind!r}: expected one of {KINDS}")
+        for c in channels:
+            if c.name in TABLES or "/" in c.name or c.name.strip(".") == "":
+                raise UserError(f"channel name {c.name!r}: a name the run file cannot hold (no '/', not one of "
+                                f"{list(TABLES)})", file=str(self.path), key=f"shots/{kind}")
         shots = self._f["shots"]
         if kind in shots:
             g = shots[kind]
@@ -329,36 +353,8 @@ class RunStore:
                                 "expected the same rig to resume (or a new --out file)",
                                 file=str(self.path), key=f"shots/{kind}")
             return
-        f = self._normal()
-        g = f["shots"].create_group(kind)
-        g.attrs["NX_class"] = "NXdata"
-        g.attrs["kind"] = kind
-        g.attrs["rate_hz"] = float(timing.rate_hz)
-        g.attrs["rate_hz_units"] = "Hz"
-        g.attrs["samples"] = int(timing.samples)
-        g.attrs["pretrigger"] = int(timing.pretrigger)
-        g.attrs["channels"] = json.dumps([asdict(c) for c in channels])
-        g.attrs["trigger"] = json.dumps(asdict(trigger) if trigger else None)
-        g.attrs["signal"] = channels[0].name
-        n = timing.samples
-        for c in channels:
-            ds = g.create_dataset(c.name, shape=(0, n), maxshape=(None, n), dtype=dtype,
-                                  chunks=(1, n), compression="gzip", compression_opts=1,
-                                  shuffle=True)
-            ds.attrs.update(units="V", sensitivity=c.sensitivity, physical_units=c.unit,
-                            kind=c.kind, physical_channel=c.physical, range_v=c.range_v,
-                            coupling=c.coupling, long_name=f"{c.name} ({c.kind}) at the ADC input")
-        ncol = len(channels)
-        specs = {"timestamp": ("f8", ()), "overload": ("u1", (ncol,)),
-                 "backend": (f"S{_STR_LEN}", ()), "software_version": (f"S{_STR_LEN}", ()),
-                 "meta": (f"S{_META_LEN}", ()), "committed": ("i8", ())}
-        for name, (dt, extra) in specs.items():
-            ds = g.create_dataset(name, shape=(0, *extra), maxshape=(None, *extra), dtype=dt,
-                                  chunks=(4 if name == "meta" else 64, *extra),
-                                  compression="gzip" if name == "meta" else None)
-        g["timestamp"].attrs["units"] = "s"
-        g["overload"].attrs["columns"] = json.dumps([c.name for c in channels])
-        f.flush()
+        with self._structure(f"creating the {kind} shot table", 4096 * len(channels)) as f:
+            create_table(f, kind, channels, timing, trigger, dtype, _STR_LEN, _META_LEN)
 
     def append_shot(self, record: Record, kind: str) -> str:
         """Append one record as a shot of ``kind``; flushed before returning.
@@ -369,37 +365,23 @@ class RunStore:
             raise UserError("run file opened read-only", file=str(self.path))
         if kind not in self._f["shots"]:
             self.declare(kind, record.channels, record.timing, record.trigger)
-        f = self._swmr_on()
-        g, cols = self._table(kind)
-        n = g["committed"].shape[0]
-        names = [c.name for c in record.channels]
-        if cols != names:
-            raise UserError(f"record channels {names} differ from the recorded table",
-                            file=str(self.path), key=f"shots/{kind}")
-        meta = json.dumps(record.meta, default=json_default).encode()
-        if len(meta) > _META_LEN:
-            raise ValueError(f"record meta too long ({len(meta)} > {_META_LEN} bytes)")
-        row = {c: np.asarray(record.data[c], dtype=g[c].dtype) for c in names}
-        for c, arr in row.items():
-            ds = g[c]
-            if arr.shape != (ds.shape[1],):
-                raise ValueError(f"channel {c}: {arr.shape[0]} samples, table has {ds.shape[1]}")
-            ds.resize(n + 1, axis=0)
-            ds[n] = arr
-        for name, val in (("timestamp", float(record.timestamp)),
-                          ("overload", np.array([bool(record.overload.get(c, False)) for c in names], "u1")),
-                          ("backend", record.backend.encode()[:_STR_LEN]),
-                          ("software_version", software_version().encode()[:_STR_LEN]),
-                          ("meta", meta)):
-            ds = g[name]
-            ds.resize(n + 1, axis=0)
-            ds[n] = val
-        f.flush()                      # data first ...
-        ds = g["committed"]            # ... then the commit marker
-        ds.resize(n + 1, axis=0)
-        ds[n] = n + 1
-        f.flush()
-        return f"{kind}_{n + 1:04d}"
+        with self._writing(f"writing a {kind} shot"):
+            f = self._swmr_on()
+            g, cols = self._table(kind)
+            names = [c.name for c in record.channels]
+            if cols != names:
+                raise UserError(f"record channels {names} differ from the recorded table",
+                                file=str(self.path), key=f"shots/{kind}")
+            meta = json.dumps(record.meta, default=json_default).encode()
+            if len(meta) > _META_LEN:
+                raise ValueError(f"record meta too long ({len(meta)} > {_META_LEN} bytes)")
+            row = {c: np.asarray(record.data[c], dtype=g[c].dtype) for c in names}
+            for c, arr in row.items():           # every check before the first write
+                if arr.shape != (g[c].shape[1],):
+                    raise ValueError(f"channel {c}: {arr.shape[0]} samples, table has {g[c].shape[1]}")
+            nbytes = sum(a.nbytes for a in row.values())
+            with reserved(f, nbytes * 1.1 + _META_LEN, self.path, f"the {kind} shot"):
+                return append_row(f, g, row, meta, record, kind, software_version(), _STR_LEN)
 
     def _table(self, kind: str) -> tuple[dict, list[str]]:
         """Dataset handles of a shot table (cached while the file stays open)."""
@@ -461,18 +443,20 @@ class RunStore:
         """Write a nested dict (arrays, scalars, strings, dicts) under ``/results/<path>``,
         replacing any previous content of that group.
 
-        Crash-safe: written into a copy of the run (``RUN.h5.results``), synced, then
-        renamed over it; a kill at any moment leaves the earlier results intact.
-        ``UserError`` naming the file when the disk is full or read-only (the run
-        file is unchanged)."""
-        self._normal()
-        self._handles = (None,)
-        self._f.flush()
-        self._f.close()
+        Crash-safe: written into a copy of the run (``.RUN.h5.XXXXXXXX.results``), synced,
+        then renamed over it; a kill at any moment leaves the earlier results intact.
+        ``UserError`` naming the file when the disk is full or read-only, or the run is
+        damaged (the run file is unchanged)."""
+        with self._writing("closing the run before storing a result"):
+            self._normal()
+            self._handles = (None,)
+            self._f.flush()
+            self._f.close()
         self._f = None
         try:
             replace_group(self.path, f"results/{path.strip('/')}", data)
         finally:
+            relock(self.path)
             self._f = h5py.File(self.path, "a", libver="latest", locking=False)
 
     def write_result(self, path: str, data: dict) -> None:
@@ -483,18 +467,34 @@ class RunStore:
         try:
             self.write_group(path, {**data, "json": text})
         except (ValueError, TypeError):
-            self.write_group(path, {"json": text})
+            try:
+                self.write_group(path, {"json": text})
+            except (ValueError, TypeError) as e:     # even one string does not go in: damaged
+                raise not_written(self.path, e) from None
 
     def read_group(self, path: str) -> dict:
         """The nested dict written by ``write_group`` (arrays as numpy, strings as str)."""
         full = f"results/{path.strip('/')}"
-        if full not in self._f:
+
+        def read():
+            with self._reading():
+                return read_tree(self._f[full]) if full in self._f else None
+        tree = in_child(self.path, full, read)    # a group the library would loop on: refused (store.probe)
+        if tree is None:
             raise KeyError(f"no results group {path!r} in {self.path}")
-        with self._reading():
-            return read_tree(self._f[full])
+        check_result(path.strip("/"), decode_result(tree), str(self.path))
+        return tree
 
     def read_result(self, path: str) -> Any:
-        """``/results/<path>``: its JSON copy when it has one (read alone), else ``read_group``'s."""
-        with self._reading():
-            got = read_json_copy(self._f.get(f"results/{path.strip('/')}"))
-        return got if got is not None else decode_result(self.read_group(path))
+        """``/results/<path>``: its JSON copy when it has one (read alone, in a child the first
+        time as ``read_group``), else ``read_group``'s; checked against the shape labid writes."""
+        key = path.strip("/")
+
+        def read():
+            with self._reading():
+                return read_json_copy(self._f.get(f"results/{key}"))
+        got = in_child(self.path, f"results/{key}#json", read)
+        if got is None:
+            return decode_result(self.read_group(path))
+        check_result(key, got, str(self.path))
+        return got

@@ -10,10 +10,11 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..base.atomic import fsync_dir
+from ..base.atomic import fsync_dir, reason, temp_beside
 from ..base.errors import UserError
+from .space import is_write_failure, poison, reserved, trim_file
 
-__all__ = ["decode_result", "json_default", "write_tree", "read_tree", "replace_group"]
+__all__ = ["decode_result", "json_default", "write_tree", "read_tree", "replace_group", "tree_bytes", "not_written"]
 
 
 def decode_result(g: Any) -> Any:
@@ -76,7 +77,22 @@ def write_tree(g: h5py.Group, data: dict) -> None:
                 g.create_dataset(k, data=arr)
 
 
+def tree_bytes(data: Any) -> int:
+    """About how many bytes ``write_tree`` stores for ``data`` (arrays, text, and 1 kB of
+    HDF5 objects per key): what ``replace_group`` reserves before writing."""
+    if isinstance(data, dict):
+        return sum(1024 + len(str(k)) + tree_bytes(v) for k, v in data.items())
+    if isinstance(data, (list, tuple)):
+        return 1024 + sum(tree_bytes(v) for v in data)
+    if isinstance(data, (str, bytes)):
+        return 4 * len(data) + 64
+    nbytes = getattr(data, "nbytes", None)
+    return int(nbytes) + 64 if isinstance(nbytes, int) else 64
+
+
 def read_tree(g: h5py.Group) -> Any:
+    if not isinstance(g, h5py.Group):
+        raise TypeError(f"{g.name}: a dataset where a group of results was expected")
     if "list_of" in g.attrs:
         return [read_tree(g[str(i)]) for i in range(int(g.attrs["list_of"]))]
     out: dict[str, Any] = {}
@@ -101,24 +117,64 @@ def read_tree(g: h5py.Group) -> Any:
 
 def replace_group(run: Path, full: str, data: dict) -> None:
     """Replace the group ``full`` of the closed file ``run`` by ``data``, crash-safely: the
-    file is copied to ``RUN.h5.results``, the group written there, the copy synced and
-    renamed over ``run`` (a kill at any moment leaves the old file or the new one).
-    UserError naming the file when the disk is full or read-only (``run`` unchanged)."""
-    tmp = run.with_name(run.name + ".results")
+    file is copied to ``.RUN.h5.XXXXXXXX.results`` (``temp_beside``), the group written
+    there with its bytes reserved first (``space.reserved``), the copy synced and renamed
+    over ``run`` (a kill at any moment leaves the old file or the new one). UserError
+    naming the file when the disk is full or read-only, or the run too damaged to take
+    the group (``run`` unchanged)."""
+    tmp = None
     try:
+        tmp = temp_beside(run, ".results")
         shutil.copyfile(run, tmp)
-        with h5py.File(tmp, "a", libver="latest", locking=False) as f:
-            if full in f:
-                del f[full]
-            write_tree(f.require_group(full), data)
+        shutil.copymode(run, tmp)                # the run keeps its permissions (mkstemp: 0600)
+        _write_copy(tmp, run, full, data)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, run)
         fsync_dir(run.parent)
     except OSError as e:
         if e.errno is None and "errno" not in str(e):
-            raise
-        raise UserError(f"results not written ({e.strerror or str(e).splitlines()[0][:120]}); "
-                        "the run file is unchanged", file=str(run)) from None
+            raise not_written(run, e) from None
+        raise UserError(f"results not written ({reason(e)}); the run file is unchanged", file=str(run)) from None
     finally:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
+
+
+def _write_copy(tmp: Path, run: Path, full: str, data: dict) -> None:
+    """Write ``data`` as the group ``full`` of the copy ``tmp`` of ``run``. A failed write
+    leaves the HDF5 file unclosable (``space.poison``); any other error of a damaged copy
+    is one UserError."""
+    f = h5py.File(tmp, "a", libver="latest", locking=False)
+    try:
+        with reserved(f, tree_bytes(data), run, "storing the result", trim=False):
+            if full in f:
+                del f[full]
+            write_tree(f.require_group(full), data)
+            f.flush()
+    except BaseException as e:
+        if is_write_failure(e):
+            poison(f)
+            raise UserError(f"results not written ({reason(e) if isinstance(e, OSError) else 'a write failed'}); "
+                            "the run file is unchanged", file=str(run)) from None
+        try:
+            f.close()
+        except Exception:  # noqa: BLE001 - the copy is discarded anyway
+            poison(f)
+        if isinstance(e, (UserError, KeyboardInterrupt, SystemExit, ValueError, TypeError)):
+            raise                  # ValueError, TypeError: the data does not fit HDF5 (write_result)
+        raise not_written(run, e) from None
+    try:
+        f.close()
+    except Exception as e:  # noqa: BLE001 - a close that fails is a failed write
+        poison(f)
+        raise UserError(f"results not written ({type(e).__name__}); the run file is unchanged",
+                        file=str(run)) from None
+    trim_file(tmp)
+
+
+def not_written(run: Path, e: BaseException) -> UserError:
+    """The one line for a result the damaged run ``run`` cannot take."""
+    text = str(e).splitlines()[0][:120] if str(e) else ""
+    return UserError(f"results not written: the run file is damaged ({type(e).__name__}: {text}); "
+                     "the run file is unchanged", file=str(run))

@@ -16,7 +16,8 @@ from drivers.protocol import ChannelConfig
 from ..base.errors import UserError
 
 _CHANNEL_FIELDS = {f.name for f in fields(ChannelConfig)}
-_TABLES = ("timestamp", "overload", "backend", "software_version", "meta", "committed")
+#: the tables of a shot kind besides its channels (rig channels may not take these names)
+TABLES = ("timestamp", "overload", "backend", "software_version", "meta", "committed")
 
 
 def damaged(path: str | Path, e: BaseException) -> UserError:
@@ -62,7 +63,7 @@ def check_run(f: h5py.File, src: str) -> None:
                 isinstance(c, dict) and isinstance(c.get("name"), str) and set(c) <= _CHANNEL_FIELDS
                 for c in chans):
             raise _bad(src, key + ".channels", "expected a JSON list of channel objects")
-        for t in _TABLES:
+        for t in TABLES:
             if t not in g or not isinstance(g[t], h5py.Dataset):
                 raise _bad(src, f"{key}/{t}", "table missing")
         n = g["committed"].shape[0] if g["committed"].shape else -1
@@ -73,7 +74,7 @@ def check_run(f: h5py.File, src: str) -> None:
             ds = g.get(name)
             if not isinstance(ds, h5py.Dataset) or ds.ndim != 2 or ds.shape[1] != samples:
                 raise _bad(src, f"{key}/{name}", f"expected a table of rows of {samples} samples")
-        for t in (*_TABLES, *(c["name"] for c in chans)):
+        for t in (*TABLES, *(c["name"] for c in chans)):
             if g[t].shape[0] < n:
                 raise _bad(src, f"{key}/{t}", f"{g[t].shape[0]} rows, fewer than the {n} committed shots")
 
@@ -88,7 +89,7 @@ class _Reading:
         return None
 
     def __exit__(self, tp, e, tb) -> bool:
-        if e is not None and isinstance(e, (OSError, KeyError, ValueError, TypeError, IndexError,
+        if e is not None and isinstance(e, (OSError, KeyError, ValueError, TypeError, IndexError, AttributeError,
                                             UnicodeDecodeError, RuntimeError)):
             raise damaged(self.path, e) from None
         return False

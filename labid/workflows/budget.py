@@ -24,7 +24,7 @@ Its console table: ``labid.base.summary.budget_text``. Units SI.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Mapping
 
 import numpy as np
 

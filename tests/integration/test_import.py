@@ -184,7 +184,7 @@ def test_one_file_per_hit_makes_one_shot_each(tmp_path):
     files = []
     for k in range(3):
         p = tmp_path / f"hit{k}.csv"
-        write_csv(p, ["force_N", "acc1_g"], [np.full(50, k + 1.0), np.full(50, -k - 1.0)])
+        write_csv(p, ["force_N", "acc1_g"], [np.full(300, k + 1.0), np.full(300, -k - 1.0)])
         files.append(p)
     res = import_records(files, "default", "cfrp", tmp_path / "run.h5", "force_N=force,acc1_g=acc1", rate_hz=1e4)
     assert res.shots == ["hammer_0001", "hammer_0002", "hammer_0003"]

@@ -73,6 +73,11 @@ def siblings(path: Path) -> set[str]:
     return {p.name for p in path.parent.iterdir()}
 
 
+def temps(path: Path, suffix: str) -> set[str]:
+    """The temporary files beside ``path`` a writer made (``.NAME.XXXXXXXX<suffix>``, mkstemp)."""
+    return {n for n in siblings(path) if n.startswith(f".{path.name}.") and n.endswith(suffix)}
+
+
 # ------------------------------------------------------------------ one writer at a time
 HOLDER = """
 from labid.store import RunStore
@@ -211,7 +216,7 @@ def test_sigkill_while_results_are_written_keeps_the_earlier_results(tmp_path, t
     """, str(p))
     with RunStore(p, "r") as st:                  # the earlier results, whole
         assert st.read_result("analysis") == expected
-    assert (p.parent / "run.h5.results").exists()  # the killed writer's copy, never the run
+    assert temps(p, ".results")                   # the killed writer's copy, never the run
     with RunStore(p) as st:                       # the next writer clears it, and writes
         st.write_result("analysis", {"v": 2})
     assert siblings(p) == {"run.h5"}
@@ -267,6 +272,26 @@ def test_atomic_write_leaves_the_old_file_when_the_rename_fails(tmp_path, monkey
         atomic.write_text(out, "new")
     assert str(out) in str(ei.value)
     assert out.read_text() == "old" and siblings(out) == {"f.json"}
+
+
+def test_atomic_outputs_get_the_permissions_of_a_plain_write(tmp_path):
+    """mkstemp makes its file 0600; the published file is 0666 less the umask, as open() gives."""
+    atomic.write_text(tmp_path / "a.txt", "x")
+    (tmp_path / "b.txt").write_text("x")
+    assert (tmp_path / "a.txt").stat().st_mode & 0o777 == (tmp_path / "b.txt").stat().st_mode & 0o777
+
+
+def test_run_files_keep_the_permissions_of_a_plain_write(tmp_path):
+    """A run created (a temporary renamed), its results stored (a copy renamed over it) and a
+    repair keep the mode a plain file gets, never mkstemp's 0600."""
+    (tmp_path / "plain").write_text("x")
+    mode = (tmp_path / "plain").stat().st_mode & 0o777
+    p = small_run(tmp_path / "run.h5", result={"x": 1.0})
+    assert p.stat().st_mode & 0o777 == mode
+    os.chmod(p, 0o640)
+    with RunStore(p) as st:
+        st.write_result("analysis", {"x": 2.0})
+    assert p.stat().st_mode & 0o777 == 0o640
 
 
 def test_json_output_is_replaced_atomically(tmp_path):
@@ -595,13 +620,17 @@ def test_features_specimen_path_only_regular_small_files(tmp_path):
 def test_stray_temporary_files_of_a_killed_writer_are_removed_by_the_next_writer_only(tmp_path):
     p = small_run(tmp_path / "run.h5")
     for suffix in (".repair", ".new", ".results", ".unlocked"):
-        (tmp_path / f"run.h5{suffix}").write_bytes(b"half")
+        (tmp_path / f"run.h5{suffix}").write_bytes(b"half")            # an earlier version's names
+        (tmp_path / f".run.h5.k3_9abcd{suffix}").write_bytes(b"half")  # mkstemp's
+    keep = {"run.h5x.results", ".run.h5.x.h5.abcdefgh.results", ".run.h5.abcdefgh.results.bak"}
+    for name in keep:                                                  # not the temporaries of run.h5
+        (tmp_path / name).write_bytes(b"other")
     with RunStore(p, "r") as st:                   # a reader leaves them (it never writes)
         assert st.n_shots() == 3
-    assert len(siblings(p)) == 5
+    assert len(siblings(p)) == 12
     with RunStore(p) as st:
         st.append_shot(record(9), "hammer")
-    assert siblings(p) == {"run.h5"}
+    assert siblings(p) == {"run.h5"} | keep
 
 
 @pytest.mark.parametrize("argv", [["modes", "/dev/zero"], ["identify", "/dev/zero"],

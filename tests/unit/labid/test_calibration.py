@@ -107,7 +107,7 @@ def test_imported_shots_carry_the_calibration(tmp_path):
     import numpy as np
     rig = lab(tmp_path, f"force,F9,2.3,mV/N,2025-01-01,{FUTURE}\n")
     path = tmp_path / "f.csv"
-    path.write_text("force_N\n" + "\n".join(["1.0"] * 20) + "\n")
+    path.write_text("force_N\n" + "\n".join(["1.0"] * 300) + "\n")   # longer than the rig's pre-trigger
     res = services.import_records([path], str(rig), "cfrp", tmp_path / "run.h5", "force_N=force", rate_hz=1e4)
     rec = services.shots(tmp_path / "run.h5", "hammer")[0]
     np.testing.assert_allclose(rec.data["force"], 2.3e-3, rtol=1e-15)    # 1 N x 2.3 mV/N at the input

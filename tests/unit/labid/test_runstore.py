@@ -8,7 +8,6 @@ import signal
 import subprocess
 import sys
 import textwrap
-import time
 
 import h5py
 import numpy as np
@@ -143,23 +142,22 @@ WRITER = textwrap.dedent("""
 
 @pytest.mark.slow
 def test_sigkill_mid_write_keeps_every_committed_shot(tmp_path):
-    """Kill a writer at several arbitrary moments; the file opens, every shot reported
-    committed is intact, and reopening appends after them."""
+    """Kill a writer at several moments (each on an event: after the k-th shot it reports
+    committed, while it writes the next one, whatever the machine's load); the file opens,
+    every shot reported committed is intact, and reopening appends after them."""
     root = str(Path(__file__).resolve().parents[3])
     script = tmp_path / "writer.py"
     script.write_text(WRITER.format(root=root))
     p = tmp_path / "run.h5"
     committed: dict[str, str] = {}
-    for k, delay in enumerate((0.9, 1.3, 1.1, 1.6)):
+    for after in (2, 3, 1, 4):
         proc = subprocess.Popen([sys.executable, str(script), str(p)], stdout=subprocess.PIPE, text=True)
-        time.sleep(delay)
-        proc.send_signal(signal.SIGKILL)
+        for _ in range(after):
+            name, digest = proc.stdout.readline().split()
+            committed[name] = digest
+        proc.send_signal(signal.SIGKILL)       # the next shot is being written
         out, _ = proc.communicate()
-        lines = [ln.split() for ln in out.splitlines() if ln.strip()]
-        committed.update(dict(lines))
-        if not p.exists():                 # killed before it created the file
-            assert not committed
-            continue
+        committed.update(dict(ln.split() for ln in out.splitlines() if ln.strip()))
         with RunStore(p, "r") as s:
             recs = s.shots("hammer")
         assert len(recs) >= len(committed)
@@ -192,12 +190,12 @@ def test_writer_killed_outside_swmr_mode_is_readable_and_repaired(tmp_path):
     with RunStore(p) as s:
         s.append_shot(record(0), "hammer")
     root = str(Path(__file__).resolve().parents[3])
-    code = (f"import sys, time; sys.path.insert(0, {root!r})\n"
+    code = (f"import sys; sys.path.insert(0, {root!r})\n"
             "from labid.store import RunStore\n"
             f"s = RunStore({str(p)!r})\n"
             "s.write_group('features', {'f': [1.0, 2.0]})\n"
-            "print('ready', flush=True); time.sleep(60)\n")
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+            "print('ready', flush=True); sys.stdin.readline()\n")      # killed while it waits here
+    proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "ready"
     proc.kill()
     proc.wait()

@@ -12,7 +12,7 @@ import pytest
 
 from labid.store import RunStore
 
-from test_reliability import child, flagged_run, siblings, small_run
+from tests.integration.test_reliability import child, flagged_run, siblings, small_run, temps
 
 #: a run writer (``"a"`` open) whose repair is stopped at a chosen moment
 REPAIRER = """
@@ -75,7 +75,7 @@ def test_kill_during_the_repair_copy_leaves_the_run_intact(tmp_path, moment):
     try:
         line = proc.stdout.readline().strip()
         assert line == moment, proc.stderr.read()
-        assert (tmp_path / "run.h5.repair").exists()     # the copy is being made beside the run
+        assert temps(p, ".repair")                 # the copy is being made beside the run (mkstemp name)
     finally:
         proc.kill()
         proc.wait()
@@ -84,11 +84,11 @@ def test_kill_during_the_repair_copy_leaves_the_run_intact(tmp_path, moment):
     assert p.read_bytes() == before
     with RunStore(p, "r") as st:
         assert st.n_shots() == 3 and st.read_result("analysis") == result
-    assert "run.h5.repair" in siblings(p)
+    assert temps(p, ".repair")
     # the next writer removes the killed writer's copy, repairs the run and appends to it
-    from test_reliability import record
+    from tests.integration.test_reliability import record
     with RunStore(p) as st:
-        assert "run.h5.repair" not in siblings(p)
+        assert not temps(p, ".repair")
         st.append_shot(record(7), "hammer")
     with h5py.File(p, "r") as f:                  # repaired: opens without help
         assert f.attrs["labid_schema"] is not None
