@@ -9,6 +9,14 @@ from labid.base import threads  # noqa: E402
 
 threads.configure()
 
+import signal  # noqa: E402
+
+# A test suite started as a background job (`make test &`, nohup, some CI runners) inherits
+# SIGINT ignored; its children would inherit that too and never see the Ctrl-C the signal
+# tests send (a child waited 40 min in signal.pause()). Ctrl-C is restored as a terminal gives it.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 import pytest  # noqa: E402
 
