@@ -122,6 +122,8 @@ def _fits(value: Any, spec) -> str | None:
     if spec == L:
         return None if isinstance(value, (list, np.ndarray)) else f": {type(value).__name__}, expected a list"
     if isinstance(spec, list):
+        if value is None:       # null: a list not computed (labid's readers treat it as absent)
+            return None
         if isinstance(value, np.ndarray):
             ok = spec[0] in (N, R, A) and value.dtype.kind in "iufb" or spec[0] == S and value.dtype.kind in "OSU"
             return None if ok else f": an array of {value.dtype}, expected a list"
