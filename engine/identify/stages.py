@@ -401,6 +401,8 @@ def discretisation(laminate, length: float, width: float, masses, model, materia
     kept correction gets its first ``n`` (the diagnosis asks for the modes its peaks pair
     with: identify's own correction, not a second fine-mesh solve: 0.5 s CPU and 81 MiB)."""
     K, M = model.matrices(None, material)
+    if material is None and len(laminate.materials) == 1:     # the one material, by its name
+        material = next(iter(laminate.materials))
     key = (repr(laminate), float(length), float(width), repr([tuple(map(float, m)) for m in masses or ()]),
            material, hashlib.sha1(np.ascontiguousarray(K.data).tobytes()
                                   + np.ascontiguousarray(M.data).tobytes()).hexdigest())

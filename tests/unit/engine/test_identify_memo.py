@@ -93,3 +93,20 @@ def test_discretisation_memo_serves_fewer_modes_from_the_kept_correction(monkeyp
     np.testing.assert_array_equal(r5, r8[:5])
     np.testing.assert_array_equal(e5, e8[:5])
     assert "at mode" in note and int(note.split("at mode ")[1].split(";")[0]) <= 5
+
+
+def test_discretisation_memo_serves_the_unnamed_one_material(monkeypatch):
+    """Identify names the laminate's one material, the diagnosis' peak corrections pass None:
+    the same K and M (checked here), so the same kept correction, without a second fine mesh."""
+    assert len(SPEC.laminate.materials) == 1
+    K1, M1 = _model().matrices(None, MAT)
+    K0, M0 = _model().matrices(None, None)
+    assert abs(K1 - K0).max() == 0.0 and abs(M1 - M0).max() == 0.0
+    r8, e8, _ = discretisation(SPEC.laminate, SPEC.length, SPEC.width, [], _model(), MAT, 8)
+    again = _model()
+    builds = []
+    monkeypatch.setattr(PlateModel, "build", classmethod(lambda *a, **k: builds.append(a) or None))
+    r6, e6, _ = discretisation(SPEC.laminate, SPEC.length, SPEC.width, [], again, None, 6)
+    assert not builds
+    np.testing.assert_array_equal(r6, r8[:6])
+    np.testing.assert_array_equal(e6, e8[:6])
