@@ -13,7 +13,7 @@ Units SI (Hz, m/s, m, kg).
 """
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any, Mapping, NamedTuple
 
 import numpy as np
 
@@ -37,11 +37,12 @@ class Blocks(NamedTuple):
 
 
 def feature_blocks(features: Features, *, plate_model=None, correct_discretisation: bool = True,
-                   drive_points=None) -> Blocks:
+                   drive_points=None, correction_at: Mapping[str, float] | None = None) -> Blocks:
     """The data blocks of ``features`` (its ``material`` set). ``plate_model``: a prebuilt
     default-mesh ``PlateModel`` of the same specimen with the rig's masses (else built here,
     ``PhysicsError`` for an unphysical laminate); ``drive_points``: hammer points (m, (k, 2))
-    for the modes' visibility. Raises ``IdentificationError`` from the modal block."""
+    for the modes' visibility; ``correction_at``: the constants the discretisation correction
+    is solved at (None: the laminate's own). Raises ``IdentificationError`` from the modal block."""
     material = features.material
     blocks: list[DataBlock] = []
     notes: list[str] = []
@@ -60,8 +61,9 @@ def feature_blocks(features: Features, *, plate_model=None, correct_discretisati
         corr = err = None
         if correct_discretisation:
             corr, err, note = discretisation(features.laminate, features.length, features.width, masses, model,
-                                             material, f.size + n_extra)
-            notes.append(note)
+                                             material, f.size + n_extra, correction_at)
+            notes.append(note if correction_at is None else
+                         note.replace("corrected from", "corrected (again, at the estimate) from"))
         resp = features.rig.accelerometers or (md.points if md.points is not None else None)
         # MAC pairing needs enough shape points; with fewer (e.g. three accelerometers) the
         # likelihood pairing is more reliable
