@@ -107,6 +107,7 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
     md = feats.modal
     if md is not None:
         f, sig = md.frequency_hz, md.sigma_hz
+        sig_rel = float(np.min(np.asarray(sig, float) / np.asarray(f, float))) if f.size else 0.0
         if f.size == 0:
             raise UserError("expected a non-empty list of numbers", file=src, key="modal.frequencies_hz")
         if modal_model is None:
@@ -164,7 +165,8 @@ def problem_from_features(doc: Mapping, *, base_dir: str | Path = ".", src: str 
             c2, e2, _ = discretisation_error(spec.laminate, spec.length, spec.width, feats.rig.masses(),
                                              modal_model, material, f.size + n_extra, params)
             k = min(c2.size, corr.size)
-            if np.all(np.abs(c2[:k] / corr[:k] - 1.0) <= e2[:k]):
+            # unchanged within its error and the finest measured sigma: the first fit stands
+            if np.all(np.abs(c2[:k] / corr[:k] - 1.0) <= np.hypot(e2[:k], sig_rel)):
                 return None
             return problem_from_features(doc, base_dir=base_dir, src=src, specimen=specimen, material=material,
                                          modal_model=modal_model, correction_at=dict(params))
