@@ -80,7 +80,10 @@ def main(argv) -> None:
             print(f"  fit: {res['fit'].get('verdict') or ('identified' if res.get('identified') else 'not identified')}, "
                   f"consistent {res['fit'].get('consistent')}, chi2/nu {res['fit'].get('chi2_per_dof', float('nan')):.3g}, "
                   f"p {res['fit'].get('p_value', float('nan')):.2g}; per block chi2/n: " + ", ".join(
-                      f"{k} {b['chi2'] / max(b['n'], 1):.2g}" for k, b in res.get("blocks", {}).items()))
+                      f"{k} {b['chi2'] / max(b['n'], 1):.2g}" for k, b in res.get("blocks", {}).items())
+                  + "; against the stated sigmas (before any Birge scaling): " + ", ".join(
+                  f"{k} {b['chi2'] * res.get('sigma_scale', {}).get(b['kind'], 1.0) ** 2 / max(b['n'], 1):.3g}"
+                  for k, b in res.get("blocks", {}).items()))
             for wmsg in res.get("warnings", [])[:4]:
                 print("   ", wmsg[:200])
             print(f"  {'constant':>8} {'file':>9} {'truth':>9} {'identified':>11} {'std':>8} {'error':>8} {'err/std':>7}")

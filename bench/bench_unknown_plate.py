@@ -93,6 +93,9 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
               f"{f.min() / 1e3:.0f}-{f.max() / 1e3:.0f} kHz; error vs the true plate "
               f"{100 * e.min():+.2f} .. {100 * e.max():+.2f} %, sigma {100 * (s / ref).min():.2f} .. "
               f"{100 * (s / ref).max():.2f} %, max |err|/sigma {z.max():.1f}")
+        dr = w.get("dropped", {})
+        if dr:
+            print("    dropped: " + ", ".join(f"{k} x{v}" for k, v in sorted(dr.items(), key=lambda x: -x[1])[:4]))
         bad = np.abs(e) > 0.01
         if bad.any():
             print("    points off by more than 1 %: " + ", ".join(

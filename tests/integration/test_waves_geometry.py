@@ -1,9 +1,9 @@
 """Guided waves on records as labs have them (issue 14): tone bursts from a bonded PZT,
 edge reflections, crosstalk, a resonant sensor, the source time unknown.
 
-The references are outside the method: the SAFE group velocities of the specimen the
-simulated rig was built from (``engine.safe.group_velocity``, tested against Rayleigh-Lamb
-elsewhere), the image-source geometry of a rectangle, the analytic responses of a
+The references are outside the method: the group velocities of the specimen from an
+independent model (tests/wave_reference.py, Legendre elements, not the engine.safe curves
+that place the pick windows; issue 24), the image-source geometry of a rectangle, the analytic responses of a
 first-order high-pass and a damped resonance, exact superposition.
 
 The setup of the issue: a 1 m x 1 m x 3 mm aluminium plate, a 5-cycle 180 kHz Hann burst
@@ -27,6 +27,7 @@ from labid.inputs.rig import read_rig_text, rig_from_text
 from labid.inputs.specimen import specimen_from_dict
 from mock_hw.rig import SimulatedDevice
 from mock_hw.waves import apply_crosstalk, sensor_response
+from tests.wave_reference import independent_group_velocity
 
 AL3 = {"name": "Al 1 m x 1 m x 3 mm", "plate": {"length": 1.0, "width": 1.0},
        "materials": {"Al": {"density": 2700.0, "E": 71.04e9, "G": 25.32e9}},
@@ -61,7 +62,7 @@ def measured(r, spec, recs, settings=AnalysisSettings()):
 
 def errors(spec, g: waves.GroupVelocity, mode: str, direction: float = 45.0):
     ok = g.valid
-    cg = safe.group_velocity(spec.laminate, g.frequencies_hz[ok], mode, direction)
+    cg = independent_group_velocity(spec.laminate, g.frequencies_hz[ok], mode, direction)
     return g.velocity_m_s[ok] / cg - 1, g.sigma_m_s[ok] / cg
 
 
