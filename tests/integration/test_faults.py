@@ -641,6 +641,16 @@ def test_an_unwritable_uff_path_is_exit_2(analysed, tmp_path, capsys):
         assert str(target) in one_line(capsys.readouterr().err)
 
 
+def test_a_nul_character_in_an_argument_is_one_line_exit_2(analysed, tmp_path, capsys):
+    """Found by the fuzz bench (session 23): ``export --uff "\\0"`` was exit 1 (ValueError:
+    embedded null byte, from os.open). A shell cannot pass one; a caller of main() can."""
+    run = copy_run(analysed, tmp_path)
+    for argv in (["export", str(run), "--uff", "\0"], ["modes", "cfrp\0x"], ["report", str(run), "--out", "a\0.html"]):
+        assert cli.main([*argv, "-q"]) == 2
+        assert "NUL" in one_line(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == [run]
+
+
 def test_no_library_warning_reaches_the_console(tmp_path, capsys):
     """A float WAV with a 'PEAK' chunk (SoX and Audacity write one; scipy warns 'Chunk (non-data)
     not understood') imports with no warning line."""
