@@ -347,9 +347,15 @@ def garbage_results(run: Path, how: str) -> None:
         elif how == "features_text":
             del f["results/analysis/features"]
             f["results/analysis"].create_group("features")["json"] = json.dumps({"modal": "x"})
+        elif how == "short_column":          # found by the fuzz (session 23): export's IndexError
+            feats = json.loads(f["results/analysis/features/json"][()])
+            feats["modal"]["confidence"] = feats["modal"]["confidence"][:-1]
+            del f["results/analysis/features/json"]
+            f["results/analysis/features"]["json"] = json.dumps(feats)
 
 
-@pytest.mark.parametrize("how", ["dataset", "list_params", "analysis_list", "gap_number", "features_text"])
+@pytest.mark.parametrize("how", ["dataset", "list_params", "analysis_list", "gap_number", "features_text",
+                                 "short_column"])
 def test_report_and_export_refuse_garbage_results_in_one_line(analysed, tmp_path, how, capsys):
     """Was: report exit 1 (AttributeError) on a results group holding garbage; export too."""
     run = copy_run(analysed, tmp_path)
