@@ -166,7 +166,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # a usage error is one line and exit 2 (argparse's SystemExit(2)), --help exit 0
         try:
-            args = build_parser(command if command != "?" else None).parse_args(argv)
+            parser = build_parser(command if command != "?" else None)
+            nul = next((a for a in argv if "\0" in str(a)), None)
+            if nul is not None:                     # no path or value holds one (os.open would raise)
+                parser.error(f"argument {nul!r} holds a NUL character; expected text without one")
+            args = parser.parse_args(argv)
         except SystemExit as e:
             rc = e.code if isinstance(e.code, int) else 2
         else:

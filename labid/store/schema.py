@@ -146,6 +146,27 @@ def _fits(value: Any, spec) -> str | None:
     return None
 
 
+def _lengths(feats: Any) -> str | None:
+    """The per-peak (per-point) lists of a features document that are not as long as its
+    frequencies, as ``_fits`` words it (labid writes them equal; the export indexes them)."""
+    if not isinstance(feats, dict):
+        return None
+    groups = [("modal", feats.get("modal"), "frequencies_hz", ("sigma_hz", "damping_ratio", "confidence", "mode_index"))]
+    waves = feats.get("waves")
+    groups += [(f"waves[{i}]", w, "frequency_hz", ("group_velocity_m_s", "sigma_m_s"))
+               for i, w in enumerate(waves if isinstance(waves, list) else [])]
+    for where, g, ref, keys in groups:
+        if not isinstance(g, dict):
+            continue
+        n = 0 if g.get(ref) is None else len(g[ref])
+        for k in keys:
+            v, needed = g.get(k), k == "group_velocity_m_s"           # the others may be left out
+            m = 0 if v is None else len(v)
+            if (v is not None or needed) and m not in ((n,) if needed else (0, n)):
+                return f".{where}.{k}: {m} values for {n} frequencies, expected one per frequency"
+    return None
+
+
 def check_result(name: str, value: Any, src: str) -> None:
     """UserError naming ``src`` and the key when the result ``name`` does not have the
     shape labid writes (a damaged run file); nothing for other groups."""
@@ -161,7 +182,7 @@ def check_result(name: str, value: Any, src: str) -> None:
             except ValueError:
                 bad = ".features.json: not JSON"
             else:
-                bad = _fits(feats, FEATURES)
+                bad = _fits(feats, FEATURES) or _lengths(feats)
                 bad = None if bad is None else ".features" + bad
     if bad is None and name == "gui" and isinstance(value, dict) and isinstance(value.get("state_json"), str):
         try:

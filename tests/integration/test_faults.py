@@ -346,9 +346,15 @@ def garbage_results(run: Path, how: str) -> None:
         elif how == "features_text":
             del f["results/analysis/features"]
             f["results/analysis"].create_group("features")["json"] = json.dumps({"modal": "x"})
+        elif how == "short_column":          # found by the fuzz (session 23): export's IndexError
+            feats = json.loads(f["results/analysis/features/json"][()])
+            feats["modal"]["confidence"] = feats["modal"]["confidence"][:-1]
+            del f["results/analysis/features/json"]
+            f["results/analysis/features"]["json"] = json.dumps(feats)
 
 
-@pytest.mark.parametrize("how", ["dataset", "list_params", "analysis_list", "gap_number", "features_text"])
+@pytest.mark.parametrize("how", ["dataset", "list_params", "analysis_list", "gap_number", "features_text",
+                                 "short_column"])
 def test_report_and_export_refuse_garbage_results_in_one_line(analysed, tmp_path, how, capsys):
     """Was: report exit 1 (AttributeError) on a results group holding garbage; export too."""
     run = copy_run(analysed, tmp_path)
@@ -638,6 +644,16 @@ def test_an_unwritable_uff_path_is_exit_2(analysed, tmp_path, capsys):
     for target in (tmp_path / "no" / "such" / "dir" / "r.uff", tmp_path):
         assert cli.main(["export", str(run), "--uff", str(target), "-q"]) == 2
         assert str(target) in one_line(capsys.readouterr().err)
+
+
+def test_a_nul_character_in_an_argument_is_one_line_exit_2(analysed, tmp_path, capsys):
+    """Found by the fuzz bench (session 23): ``export --uff "\\0"`` was exit 1 (ValueError:
+    embedded null byte, from os.open). A shell cannot pass one; a caller of main() can."""
+    run = copy_run(analysed, tmp_path)
+    for argv in (["export", str(run), "--uff", "\0"], ["modes", "cfrp\0x"], ["report", str(run), "--out", "a\0.html"]):
+        assert cli.main([*argv, "-q"]) == 2
+        assert "NUL" in one_line(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == [run]
 
 
 def test_no_library_warning_reaches_the_console(tmp_path, capsys):
