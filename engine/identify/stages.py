@@ -129,9 +129,9 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
             tried.append(fit_paired(rival))
         except ValueError:
             pass
-    est = min(tried, key=_penalised)
+    i = min(range(len(tried)), key=lambda j: _penalised(tried[j]))
+    est = tried[i]                    # by position: Estimates hold arrays (== is no identity test)
     if est.message == STALLED:        # kept although stalled: fitted to the end from where it stopped
-        i = tried.index(est)
         e = fit_paired(est.params, assignment=est.fit["assignment"] if like else None)
         tried[i] = est = replace(e, iterations=est.iterations + e.iterations, history=est.history + e.history,
                                  seconds=est.seconds + e.seconds)
