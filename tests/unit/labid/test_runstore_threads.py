@@ -17,7 +17,7 @@ import threading
 import pytest
 
 from labid.store import RunStore, runstore
-from tests.integration.test_reliability import small_run
+from tests.integration.test_reliability import child, small_run
 
 GUARD_S = 900       # against a hung test only: every wait ends on an event
 
@@ -134,3 +134,28 @@ def test_writer_under_a_reader_of_its_own_thread_is_one_clear_line(tmp_path):
     assert "damaged" not in msg and "another writer" not in msg
     assert "open for reading" in msg and str(run) in msg
     write_session(run)                              # the reader closed: it goes through
+
+
+READER = """
+import sys
+from labid.store import RunStore
+with RunStore(sys.argv[1], "r") as st:
+    st.n_shots("hammer")
+    print("reading", flush=True)
+    sys.stdin.readline()
+"""
+
+
+def test_a_reader_in_another_process_is_not_another_writer(tmp_path):
+    """Readers take no lock (store.lock): a labid reader in another process held HDF5's
+    shared lock on the run, and a writer was refused as 'another writer (... a hard link)'."""
+    run = small_run(tmp_path / "run.h5")
+    proc = child(READER, str(run))
+    try:
+        assert proc.stdout.readline().strip() == "reading"
+        write_session(run)
+    finally:
+        proc.communicate("\n")
+    assert proc.returncode == 0
+    with RunStore(run, "r") as st:
+        assert st.n_shots("hammer") == 3 and "gui" in st.result_names()
