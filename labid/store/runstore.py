@@ -31,6 +31,7 @@ One writer at a time (issue 15): an ``"a"`` open takes the lock ``RUN.h5.lock``
 holder. Results (``write_group``) go into a synced copy renamed over the file: a kill leaves
 the old file or the new one. Temporary files are ``mkstemp`` names beside the run, stale
 ones removed under the lock; a run path that is a symbolic link is refused for writing.
+In one process, a writer's opens wait for readers of other threads (``labid.store.inprocess``).
 Full disk (issue 27): the bytes of every HDF5 write are reserved first (``labid.store.space``):
 a full disk or a file-size limit refuses it in one line; the committed shots are kept.
 
