@@ -101,7 +101,7 @@ def open_read_only(path: str | Path) -> h5py.File:
             raise
         f._labid_view = view  # noqa: SLF001 - keeps the file object alive with the h5py file
         return f
-    try:
-        return h5py.File(path, "r")
+    try:        # no HDF5 shared lock held while reading: it would refuse the writer's lock on the
+        return h5py.File(path, "r", locking=False)     # inode (store.lock) as "another writer"
     except OSError:
-        return h5py.File(path, "r", locking=False)
+        return h5py.File(path, "r")     # already open here by code that asked for HDF5's lock

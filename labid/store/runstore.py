@@ -31,6 +31,7 @@ One writer at a time (issue 15): an ``"a"`` open takes the lock ``RUN.h5.lock``
 holder. Results (``write_group``) go into a synced copy renamed over the file: a kill leaves
 the old file or the new one. Temporary files are ``mkstemp`` names beside the run, stale
 ones removed under the lock; a run path that is a symbolic link is refused for writing.
+In one process, a writer's opens wait for readers of other threads (``labid.store.inprocess``).
 Full disk (issue 27): the bytes of every HDF5 write are reserved first (``labid.store.space``):
 a full disk or a file-size limit refuses it in one line; the committed shots are kept.
 
@@ -48,7 +49,6 @@ import json
 import os
 import tomllib
 from dataclasses import asdict
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
@@ -61,10 +61,11 @@ from ..base.atomic import default_mode, temp_beside
 from ..base.errors import UserError
 from ..base.jsonio import to_jsonable
 from .h5repair import is_consistency_flag_error, repair
+from .inprocess import Reading, busy, changing
 from .lock import WriterLock, relock
 from .probe import in_child, probe
 from .readonly import open_read_only
-from .tables import append_row, create_table, drop_uncommitted, init_file, read_records
+from .tables import append_row, create_table, drop_uncommitted, init_file, read_records, software_version, text_of
 from .space import is_write_failure, poison, remove_stale, reserved, trim_file, write_failed
 from .tree import decode_result, json_default, not_written, read_json_copy, read_tree, replace_group, write_tree
 from .schema import check_result
@@ -78,22 +79,6 @@ SCHEMA = 1
 KINDS = ("hammer", "wave")
 _META_LEN = 4096
 _STR_LEN = 32
-
-
-def software_version() -> str:
-    """The installed labid version ('0+unknown' when not installed)."""
-    try:
-        return version("labid")
-    except PackageNotFoundError:  # pragma: no cover - not installed
-        return "0+unknown"
-
-
-def _text(v: Any) -> str:
-    if isinstance(v, bytes):
-        return v.decode("utf-8")
-    if isinstance(v, np.ndarray) and v.shape == ():
-        return _text(v[()])
-    return str(v)
 
 
 class RunStore:
@@ -112,12 +97,14 @@ class RunStore:
         self._live = False          # read-only view of a file a writer may still be appending to
         self._lock: WriterLock | None = None
         self._f: h5py.File | None = None
+        self._reader: Reading | None = None      # registered while open (store.inprocess)
         if mode == "r":
             if not self.path.exists():
                 raise UserError("file not found; expected a run file (HDF5)", file=str(self.path))
             if not self.path.is_file():
                 raise UserError("not a regular file; expected a run file (HDF5)", file=str(self.path))
             probe(self.path)          # a file the library would loop on: refused (store.probe)
+            self._reader = Reading(self.path)
             try:
                 self._f = open_read_only(self.path)
                 self._live = bool(self._f.swmr_mode)
@@ -139,9 +126,10 @@ class RunStore:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise UserError(f"cannot create the directory ({e.strerror})", file=str(self.path.parent)) from None
-        self._lock = WriterLock(self.path)
         try:
-            self._open_writer()
+            with changing(self.path):   # readers of other threads closed first (store.inprocess)
+                self._lock = WriterLock(self.path)
+                self._open_writer()
         except BaseException as e:
             self.close()
             if isinstance(e, (UserError, KeyboardInterrupt, SystemExit)) or (
@@ -203,6 +191,8 @@ class RunStore:
         except OSError as e:
             if e.errno is not None:            # permissions, read-only file system...
                 raise
+            if "already open for read-only" in str(e):   # by this thread (store.inprocess)
+                raise busy(self.path) from None
             if not is_consistency_flag_error(e):
                 raise damaged(self.path, e) from None
         repair(self.path, open_read_only)
@@ -225,8 +215,9 @@ class RunStore:
             raise UserError("run file opened read-only", file=str(self.path))
         if self._swmr:
             self._handles = (None,)
-            self._f.close()
-            self._f = h5py.File(self.path, "a", libver="latest", locking=False)
+            with changing(self.path):
+                self._f.close()
+                self._f = h5py.File(self.path, "a", libver="latest", locking=False)
             self._swmr = False
         return self._f
 
@@ -254,6 +245,8 @@ class RunStore:
             if self._lock is not None:
                 self._lock.release()
                 self._lock = None
+            if self._reader is not None:
+                self._reader.release()
 
     def __enter__(self) -> "RunStore":
         return self
@@ -272,7 +265,7 @@ class RunStore:
         cfg = f["config"]
         if "specimen_toml" in cfg:
             for key, new in (("specimen_toml", specimen_toml), ("rig_toml", rig_toml)):
-                old = _text(cfg[key][()])
+                old = text_of(cfg[key][()])
                 if old != new:
                     raise UserError(f"differs from the {key[:-5]} this file was recorded with; "
                                     "expected the same configuration to resume (or a new --out file)",
@@ -310,7 +303,7 @@ class RunStore:
     def config_text(self, name: str) -> str:
         """The text ``/config/<name>`` ('' if absent)."""
         with self._reading():
-            return _text(self._f["config"][name][()]) if name in self._f["config"] else ""
+            return text_of(self._f["config"][name][()]) if name in self._f["config"] else ""
 
     def specimen_toml(self) -> str:
         return self.config_text("specimen_toml")
@@ -447,17 +440,18 @@ class RunStore:
         then renamed over it; a kill at any moment leaves the earlier results intact.
         ``UserError`` naming the file when the disk is full or read-only, or the run is
         damaged (the run file is unchanged)."""
-        with self._writing("closing the run before storing a result"):
-            self._normal()
-            self._handles = (None,)
-            self._f.flush()
-            self._f.close()
-        self._f = None
-        try:
-            replace_group(self.path, f"results/{path.strip('/')}", data)
-        finally:
-            relock(self.path)
-            self._f = h5py.File(self.path, "a", libver="latest", locking=False)
+        with changing(self.path):    # no reader of another thread opens it closed (store.inprocess)
+            with self._writing("closing the run before storing a result"):
+                self._normal()
+                self._handles = (None,)
+                self._f.flush()
+                self._f.close()
+            self._f = None
+            try:
+                replace_group(self.path, f"results/{path.strip('/')}", data)
+            finally:
+                relock(self.path)
+                self._f = h5py.File(self.path, "a", libver="latest", locking=False)
 
     def write_result(self, path: str, data: dict) -> None:
         """Write a result (nested dict) under ``/results/<path>`` twice over: its arrays and

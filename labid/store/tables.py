@@ -5,11 +5,29 @@ from __future__ import annotations
 import json
 import time
 from dataclasses import asdict
+from importlib.metadata import PackageNotFoundError, version
 
 import h5py
 import numpy as np
 
 from drivers.protocol import ChannelConfig, Record, Timing, Trigger
+
+
+def software_version() -> str:
+    """The installed labid version ('0+unknown' when not installed)."""
+    try:
+        return version("labid")
+    except PackageNotFoundError:  # pragma: no cover - not installed
+        return "0+unknown"
+
+
+def text_of(v) -> str:
+    """A text value of an HDF5 dataset or attribute (bytes, 0-d array or str) as str."""
+    if isinstance(v, bytes):
+        return v.decode("utf-8")
+    if isinstance(v, np.ndarray) and v.shape == ():
+        return text_of(v[()])
+    return str(v)
 
 
 def read_records(shots: h5py.Group, kind: str | None, limit: int | None) -> list[Record]:
