@@ -65,7 +65,7 @@ def main(argv) -> None:
             ta, ca = time.perf_counter() - t, time.process_time() - c
             doc = read_features(out)
             t, c = time.perf_counter(), time.process_time()
-            res = services.run_identification(doc, base_dir=tmp, src=str(out), names=list(NAMES))
+            res = services.run_identification(doc, base_dir=tmp, src=str(out), names=list(NAMES)).to_dict()
             ti, ci = time.perf_counter() - t, time.process_time() - c
             results[it] = (an, doc, res)
             print(f"\n{'with' if it else 'without'} pick <-> identify: analysis {ta:.1f} s wall / {ca:.1f} s CPU, "

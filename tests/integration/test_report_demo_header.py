@@ -11,7 +11,7 @@ from labid.inputs.rig import read_rig_text
 from labid.inputs.specimen import load_specimen
 from labid.store import RunStore
 
-from test_report import hammer_record
+from tests.integration.test_report import hammer_record
 
 
 def _header(html: str) -> dict[str, str]:

@@ -21,7 +21,7 @@ from labid.inputs.rig import read_rig_text, rig_from_text
 from labid.inputs.specimen import load_specimen
 from mock_hw.rig import SimulatedDevice
 from mock_hw.serial_sim import SimEnvProbe, SimHammer
-from test_nidaq import ACC, HAMMER, TIMING, TRIG, FakeRig
+from tests.unit.drivers.test_nidaq import ACC, HAMMER, TIMING, TRIG, FakeRig
 
 
 def _fast_rig():

@@ -14,7 +14,7 @@ from PySide6.QtWidgets import QApplication  # noqa: E402
 import labid.gui.main_window as mw  # noqa: E402
 
 from fuzzcases import damaged_copy  # noqa: E402
-from test_reliability import small_run  # noqa: E402
+from tests.integration.test_reliability import small_run  # noqa: E402
 
 #: damage -> a word the one line must hold (what is wrong)
 DAMAGES = {"labid_schema=one": "labid_schema", "channels={bad": "channels", "rate_hz=0": "rate_hz",
