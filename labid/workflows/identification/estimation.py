@@ -300,7 +300,7 @@ def _recorrected(problem: Problem, est: Estimate, st: Mapping[str, float], held,
     moved = max((abs(math.log(v / nominal[n])) for n, v in est.params.items() if nominal.get(n)), default=0.0)
     if problem.recorrect is None or moved <= RECORRECT_LOG:
         return est, problem
-    p2 = problem.recorrect({**nominal, **est.params})
+    p2 = problem.recorrect(dict(est.params))        # the fitted constants; the others as the file's
     if p2 is None:
         return est, problem
     names = tuple(n for n in est.names if not held or n not in held)
