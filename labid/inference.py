@@ -16,14 +16,11 @@ import json
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
-from engine.gap import GapOptions
-
 from .base.errors import UserError
 from .base.results import Identification
 from .inputs.features import read_features, specimen_of
 from .inputs.specimen import BUILTIN, Specimen
 from .workflows import cluster
-from .workflows import diagnosis as diag
 from .workflows.identification import METHODS, minima_summary, parse_assignments
 from .workflows.identification.estimation import default_names
 from .workflows.identification.flow import identify
@@ -131,6 +128,10 @@ def run_diagnosis(doc: Mapping, base_dir: str | Path = ".", src: str = "<feature
     from identify's estimate of ``names`` (None: identify's default selection) from
     ``start`` with ``prior``; ``estimate``: that identification when at hand (not
     recomputed); ``alpha``: the false-alarm rate of the gap test (``options`` else)."""
+    # imported here: engine.gap brings scipy.stats (~0.3-0.5 s CPU), which the commands that
+    # do not diagnose (acquire, analyze, report, export, the panel's start) need not import
+    from engine.gap import GapOptions
+    from .workflows import diagnosis as diag
     if alpha is not None:
         if not 0.0 < alpha < 0.5:
             raise UserError(f"value {alpha!r}: expected a false-alarm rate in (0, 0.5)", key="--alpha")
