@@ -42,7 +42,7 @@ import math
 import sys
 from typing import Any, Iterable, Mapping, Sequence
 
-__all__ = ["eng", "unit_of", "display_unit", "constant_cells", "constants_table", "pairing_table",
+__all__ = ["eng", "finite", "unit_of", "display_unit", "constant_cells", "constants_table", "pairing_table",
            "modes_table", "dispersion_table", "next_step", "stream", "table", "budget_text", "PREFIXES"]
 
 #: SI prefixes by power of 1000
@@ -50,7 +50,8 @@ PREFIXES = {-4: "p", -3: "n", -2: "µ", -1: "m", 0: "", 1: "k", 2: "M", 3: "G", 
 DASH = "—"
 
 
-def _finite(v: Any) -> float | None:
+def finite(v: Any) -> float | None:
+    """``v`` as a finite float, or None (not a number, NaN, inf)."""
     try:
         x = float(v)
     except (TypeError, ValueError):
@@ -80,7 +81,7 @@ def eng(value: Any, unit: str = "", digits: int = 4, exp3: int | None = None) ->
     """``value`` in engineering notation with ``unit`` (SI prefix chosen so 1 <= |mantissa| < 1000,
     or forced by ``exp3``): ``eng(1.367e11, 'Pa') -> '136.7 GPa'``. Without a unit, a bare
     number with ``digits`` significant digits. ``'—'`` for None/NaN."""
-    x = _finite(value)
+    x = finite(value)
     if x is None:
         return DASH
     if not unit:
@@ -124,7 +125,7 @@ def display_unit(name: str) -> tuple[str, float]:
 def constant_cells(name: str, value: Any, std: Any, k: float = 2.0) -> tuple[str, str, str, str]:
     """(value, std, U = k x std, U / |value|) as text, std and U in the value's SI prefix."""
     u = unit_of(name)
-    v, s = _finite(value), _finite(std)
+    v, s = finite(value), finite(std)
     if u and u != "kg/m³" and v is not None:
         e = _eng_exp(v, 4)
         vs = eng(v, u, 4, exp3=e)
@@ -170,14 +171,14 @@ def constants_table(parameters: Mapping[str, Mapping], k: float = 2.0,
         row = [name, vs, ss, us, rel]
         if nominal is not None:
             nv = nominal.get(name)
-            row.append(constant_cells(name, nv, None)[0] if _finite(nv) is not None else DASH)
+            row.append(constant_cells(name, nv, None)[0] if finite(nv) is not None else DASH)
         rows.append(row)
     head = ["constant", "value", "std", f"U (k={k:g})", "rel. U"] + (["nominal"] if nominal is not None else [])
     return table(head, rows)
 
 
 def _hz(v: Any, digits: int = 2) -> str:
-    x = _finite(v)
+    x = finite(v)
     return DASH if x is None else f"{x:.{digits}f}"
 
 
@@ -185,7 +186,7 @@ def pairing_table(pairs: Sequence[Mapping]) -> str:
     """Measured peaks against FE modes (see module doc)."""
     rows = []
     for p in pairs or []:
-        meas, pred = _finite(p.get("measured_hz")), _finite(p.get("predicted_hz"))
+        meas, pred = finite(p.get("measured_hz")), finite(p.get("predicted_hz"))
         peak, idx = p.get("peak"), p.get("mode_index")
         if meas is None:
             note = "predicted mode without a peak"
@@ -206,7 +207,7 @@ def modes_table(frequencies_hz: Sequence[float], families: Sequence[str] | None 
     for i, f in enumerate(frequencies_hz):
         r = [str(i + 1), _hz(f, 3)]
         if sigma_hz is not None:
-            r.append(f"{float(sigma_hz[i]):.3g}" if i < len(sigma_hz) and _finite(sigma_hz[i]) is not None
+            r.append(f"{float(sigma_hz[i]):.3g}" if i < len(sigma_hz) and finite(sigma_hz[i]) is not None
                      else DASH)
         if families is not None:
             r.append(families[i] if i < len(families) else DASH)
@@ -224,7 +225,7 @@ def dispersion_table(modes: Sequence[Mapping]) -> str:
         cp = list(m.get("phase_velocity_m_s") or [])
         cg = list(m.get("group_velocity_m_s") or [])
         if f:
-            rows.append([str(m.get("label")), eng(m.get("cutoff_hz"), "Hz", 3) if _finite(m.get("cutoff_hz")) else "0 Hz",
+            rows.append([str(m.get("label")), eng(m.get("cutoff_hz"), "Hz", 3) if finite(m.get("cutoff_hz")) else "0 Hz",
                          f"{eng(f[0], 'Hz', 3)} – {eng(f[-1], 'Hz', 3)}", str(len(f)),
                          f"{cp[0]:.0f} / {cp[-1]:.0f}", f"{cg[0]:.0f} / {cg[-1]:.0f}"])
         else:

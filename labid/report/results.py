@@ -22,21 +22,13 @@ import math
 from typing import Any, Mapping
 
 from ..base.results import Identification
-from ..base.summary import constant_cells, eng
+from ..base.summary import constant_cells, eng, finite
 from .figures import scalar
 
 #: coverage factor when the identification holds no budget (about 95 %, normal distribution)
 K = 2.0
 #: chi^2 tail probability below which the fit's chi^2 is called improbably large or small
 TAIL = 1e-3
-
-
-def _finite(v: Any) -> float | None:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
 
 
 def _in_prefix(name: str, value: Any, x: Any) -> str:
@@ -62,21 +54,21 @@ def constant_rows(ident: Mapping, nominal: Mapping) -> list[dict]:
     held = ident.get("held") if isinstance(ident.get("held"), Mapping) else {}
     budget = ident.get("uncertainty_budget") if isinstance(ident.get("uncertainty_budget"), Mapping) else {}
     bconst = budget.get("constants") if isinstance(budget.get("constants"), Mapping) else {}
-    k_b = _finite(budget.get("coverage_factor")) or K
+    k_b = finite(budget.get("coverage_factor")) or K
     typed = Identification.from_dict(ident)
     rows = []
     for n, p in params.items():
         if not isinstance(p, Mapping):
             continue
-        v, std = _finite(p.get("value")), _finite(p.get("std"))
+        v, std = finite(p.get("value")), finite(p.get("std"))
         b = bconst.get(n) if isinstance(bconst.get(n), Mapping) else None
         if b is not None:
-            u_a = _finite(b.get("u_type_a"))
+            u_a = finite(b.get("u_type_a"))
             u_a = std if u_a is None else u_a
-            u_b, u_c = _finite(b.get("u_type_b")), _finite(b.get("u_combined"))
+            u_b, u_c = finite(b.get("u_type_b")), finite(b.get("u_combined"))
             if u_b is None and u_c is not None and u_a is not None:     # u_c^2 = u_A^2 + u_B^2
                 u_b = math.sqrt(max(u_c * u_c - u_a * u_a, 0.0))
-            row = dict(U=_finite(b.get("U")), k=k_b, u_a=u_a, u_b=u_b, in_budget=True)
+            row = dict(U=finite(b.get("U")), k=k_b, u_a=u_a, u_b=u_b, in_budget=True)
         else:
             row = dict(U=None if std is None else K * std, k=K, u_a=std, u_b=None, in_budget=False)
         ok, why = typed.status(n)          # the one definition of "identified" (labid.base.results)
@@ -84,15 +76,15 @@ def constant_rows(ident: Mapping, nominal: Mapping) -> list[dict]:
             h = held[n]
             why = f"held at {h.get('value') if isinstance(h, Mapping) else h} under a weak prior ({why})"
         status = "identified" if ok else "not identified" + (f": {why}" if why else "")
-        rows.append(dict(name=n, value=v, status=status, nominal=_finite(nominal.get(n)), **row))
+        rows.append(dict(name=n, value=v, status=status, nominal=finite(nominal.get(n)), **row))
     for n, h in held.items():
         if n in params:
             continue        # fitted under a weak prior: its one row above says "held"
         val = h.get("value") if isinstance(h, Mapping) else h
         why = h.get("reason") if isinstance(h, Mapping) else None
-        rows.append(dict(name=n, value=_finite(val), U=None, k=K, u_a=None, u_b=None, in_budget=False,
+        rows.append(dict(name=n, value=finite(val), U=None, k=K, u_a=None, u_b=None, in_budget=False,
                          status="held at this value, not fitted" + (f" ({why})" if why else ""),
-                         nominal=_finite(nominal.get(n))))
+                         nominal=finite(nominal.get(n))))
     return rows
 
 
@@ -125,7 +117,7 @@ def inputs_statement(budget: Mapping | None) -> str:
 
     def item(x: Mapping) -> str:
         unit = str(x.get("unit") or "")
-        u = _finite(x.get("u"))
+        u = finite(x.get("u"))
         return html.escape(f"{x.get('name')} {eng(u, unit.replace('^3', '³'), 2) if u is not None else '—'}")
 
     declared = [item(x) for x in inputs if x.get("source") == "specimen"]
@@ -168,7 +160,7 @@ def chi2_reading(ident: Mapping) -> str:
     scale = ident.get("sigma_scale") or {}
     scaled = (" The data sigmas were scaled by the Birge ratio where χ² per point exceeded 1 ("
               + ", ".join(f"{html.escape(str(k))} × {float(v):.3g}" for k, v in scale.items()
-                          if _finite(v) is not None) + ").") if isinstance(scale, Mapping) and scale else ""
+                          if finite(v) is not None) + ").") if isinstance(scale, Mapping) and scale else ""
     return (f"<p><b>Fit consistency.</b> {first}{head}. {reading}{scaled} (Reading: χ²/ν ≪ 1 means the "
             "stated sigmas are too large; χ²/ν ≫ 1 means they are too small or the model is incomplete.)</p>")
 
@@ -184,7 +176,7 @@ def conformity(rows: list[dict], limits: Mapping | None) -> str:
     for n, lim in limits.items():
         r = by.get(n)
         lo, hi = (lim[0], lim[1]) if isinstance(lim, (list, tuple)) and len(lim) == 2 else (None, None)
-        lo, hi = _finite(lo), _finite(hi)
+        lo, hi = finite(lo), finite(hi)
         spec = " to ".join(constant_cells(n, x, None)[0] if x is not None else "—" for x in (lo, hi))
         if r is None or r["value"] is None:
             out.append([html.escape(n), spec, "—", "not measured"])
@@ -245,7 +237,7 @@ def budget_html(budget: Any, names: list[str]) -> str:
         if src in (consts[n].get("contributions") or {}) else "—" for n in names] for src in sources]
     rows.append(["<b>combined u_c</b>"] + [_in_prefix(n, consts[n].get("value"), consts[n].get("u_combined"))
                                            for n in names])
-    k = _finite(budget.get("coverage_factor")) or K
+    k = finite(budget.get("coverage_factor")) or K
     rows.append([f"<b>expanded U (k = {k:g})</b>"] + [
         "<b>" + _in_prefix(n, consts[n].get("value"), consts[n].get("U")) + "</b>" for n in names])
     return ("<p><b>Uncertainty budget</b> (GUM: type A from the fit, type B from the specimen's "
