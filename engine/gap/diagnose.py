@@ -47,10 +47,10 @@ from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
-from scipy import stats
 
 from ..features import Features
 from ..fit import Prior, estimate
+from ..fit.chisq import chi2_isf, chi2_sf
 from ..forward import EFFECTS, ForwardModel
 from ..forward.effects import ANGLE_EFFECTS, LOOKALIKES, PLATE_EFFECTS
 from ..identify.verdict import MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION
@@ -100,8 +100,8 @@ def gap_test(r: np.ndarray, J: np.ndarray, w: np.ndarray, alpha: float) -> dict:
     # pinv: a constant no residual constrains (e.g. every peak set aside) leaves A singular
     dof = max(n - float(np.trace(J @ np.linalg.pinv(A) @ J.T)), 1.0)
     chi = float(r @ r)
-    p = float(stats.chi2.sf(chi, dof))
-    return {"chi2": chi, "dof": dof, "p_value": p, "threshold": float(stats.chi2.isf(alpha, dof)),
+    p = float(chi2_sf(chi, dof))
+    return {"chi2": chi, "dof": dof, "p_value": p, "threshold": float(chi2_isf(alpha, dof)),
             "significant": bool(p < alpha)}
 
 
@@ -194,7 +194,7 @@ def _refit_one(c: Candidate, F: GapFit, base: _ConstantsFit, fl, opts: GapOption
     try:
         rf = refit(c.name, c.magnitude_linear, F, base.theta, base.w, base.theta_prior, fl, opts.max_nfev)
         far = bool(np.any(np.abs(base.theta - base.theta_prior) > math.log(1.5)))
-        if (far or not rf.converged or stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha) \
+        if (far or not rf.converged or chi2_sf(rf.chi2, dof) < opts.accept_alpha) \
                 and np.any(base.theta_prior != base.theta):
             # second start: identify's start values (its estimate may sit in a minimum the
             # effect made: a constant > 1.5x from its start, or a refit not converged / rejected)
@@ -205,7 +205,7 @@ def _refit_one(c: Candidate, F: GapFit, base: _ConstantsFit, fl, opts: GapOption
             except RefitError:
                 pass
         rf = repaired(c.name, rf, F, base.w, base.theta_prior, fl, opts.max_nfev, proposals, c.magnitude_linear)
-        if stats.chi2.sf(rf.chi2, dof) < opts.accept_alpha and rf.chi2 < 0.5 * base.test["chi2"]:
+        if chi2_sf(rf.chi2, dof) < opts.accept_alpha and rf.chi2 < 0.5 * base.test["chi2"]:
             # explains much of the gap but fails the test: the mesh correction under the effect?
             nm = F.fw.n_modal
             tol = 0.2 * float(np.min(F.sigma_measured[:nm] / F.y[:nm])) if nm else 0.0

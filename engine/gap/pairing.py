@@ -25,9 +25,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 from scipy.optimize import least_squares
 
+from ..fit.chisq import chi2_sf
 from ..forward import ModalForward
 from ..forward.pairing import match, visibility
 from .residuals import GapFit
@@ -128,7 +128,7 @@ def pairing_check(F: GapFit, p_hat: dict, r0: np.ndarray, alpha: float, dof: flo
     r = res.fun
     chi2 = float(r @ r)
     dof2 = max(len(r) - k, 1.0)
-    pv = float(stats.chi2.sf(chi2, dof2))
+    pv = float(chi2_sf(chi2, dof2))
     if not chi2 + np.log(max(n, 2)) * (len(r) < len(r0)) < float(r0 @ r0):
         return None
     p_new = {nm: float(v) for nm, v in zip(names, np.exp(res.x))}

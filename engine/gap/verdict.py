@@ -21,9 +21,8 @@ from __future__ import annotations
 import math
 from typing import Mapping, Sequence
 
-from scipy import stats
-
 from ..features import Features
+from ..fit.chisq import chi2_sf
 from ..forward.effects import outside_lookalikes, separation
 from ..identify.sufficiency import assess, datasets_of_features
 from .candidates import Candidate
@@ -60,7 +59,7 @@ def _dof1(test: Mapping) -> float:
 
 def accepted(c: Candidate, test: Mapping, accept_alpha: float) -> bool:
     """Whether candidate ``c``'s refit passes the chi^2 test at ``accept_alpha``."""
-    return c.refit is not None and float(stats.chi2.sf(c.chi2, _dof1(test))) > accept_alpha
+    return c.refit is not None and float(chi2_sf(c.chi2, _dof1(test))) > accept_alpha
 
 
 def decide(refitted: Sequence[Candidate], test: Mapping, n: int, accept_alpha: float
@@ -71,7 +70,7 @@ def decide(refitted: Sequence[Candidate], test: Mapping, n: int, accept_alpha: f
     best = refitted[0] if refitted else None
     if best is None:
         return "unattributed", None
-    p_best = float(stats.chi2.sf(best.chi2, _dof1(test)))
+    p_best = float(chi2_sf(best.chi2, _dof1(test)))
     if p_best > accept_alpha and test["chi2"] - best.chi2 > math.log(n):
         return best.name, p_best
     return "unattributed", p_best

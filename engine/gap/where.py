@@ -10,9 +10,9 @@ from dataclasses import asdict, dataclass
 from typing import Mapping
 
 import numpy as np
-from scipy import stats
 
 from ..features import Features
+from ..fit.chisq import chi2_sf
 from ..forward import ForwardModel
 
 __all__ = ["GroupStat", "feature_labels", "mode_families", "groups", "group_table", "folds", "held_out"]
@@ -120,8 +120,8 @@ def group_table(r: np.ndarray, groups: dict[str, np.ndarray], alpha: float) -> l
                               share=c2 / total if total > 0 else 0.0,
                               rms=float(np.sqrt(np.mean(rr ** 2))),
                               mean=float(np.mean(rr)),
-                              p_value=float(stats.chi2.sf(c2, len(idx))),
-                              significant=bool(stats.chi2.sf(c2, len(idx)) < alpha)))
+                              p_value=float(chi2_sf(c2, len(idx))),
+                              significant=bool(chi2_sf(c2, len(idx)) < alpha)))
     rows.sort(key=lambda d: (-d.chi2 + d.n))
     return rows
 
