@@ -24,6 +24,7 @@ import numpy as np
 from ..laminate import PhysicsError
 from ..plate.stiffness import q_vector
 from ..forward.pairing import assign
+from .sobol import sobol
 
 __all__ = ["RitzSurrogate", "global_search", "SPREAD", "BOX_REL", "N_CANDIDATES"]
 
@@ -114,8 +115,7 @@ def global_search(surrogate: RitzSurrogate, names: Sequence[str], measured_hz, s
     inadmissible constants (skipped)."""
     start = surrogate.start
     k = len(names)
-    from scipy.stats import qmc  # here: scipy.stats costs ~0.4 s CPU to import, and only the global stage uses it
-    u = qmc.Sobol(k, scramble=True, seed=seed).random(n)
+    u = sobol(k, n, seed)   # = scipy.stats.qmc.Sobol(k, scramble=True, seed=seed).random(n), without its import
     lo = np.log(1.0 / (1.0 + BOX_REL))
     out = []
     pts = [np.zeros(k)] + list(lo + u * (-2.0 * lo))
