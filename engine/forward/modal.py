@@ -14,12 +14,12 @@ G23 density`` or ``E G nu density``).
 """
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
 from ..fit import DataBlock, IdentificationError
+from .memo import method_lru
 from .pairing import Assignment, assign, match, visibility
 
 __all__ = ["mac", "pair_by_mac", "pair_by_frequency", "ModalSolution", "ModalForward", "SelectedModes",
@@ -133,7 +133,7 @@ class ModalForward:
         #: constants (Jacobian after a rejected trial, re-pairing, the global stage, the
         #: verdict); measured: 12 of 91 solves of `labid identify` on the demo's features were
         #: repeats (~1.2 s CPU)
-        self._modes_of_key = lru_cache(maxsize=MODES_KEPT)(self._solve_key)
+        self._modes_of_key = method_lru(self._solve_key, MODES_KEPT)
         self._ref_shapes: np.ndarray | None = None
         self.warnings: list[str] = []
         self.pairing: np.ndarray = np.arange(self.n)

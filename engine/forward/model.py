@@ -33,7 +33,6 @@ Units SI: m, kg, s, Pa, Hz, m/s, K.
 """
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import Mapping
 
 import numpy as np
@@ -41,10 +40,14 @@ import numpy as np
 from ..features import Features, WaveData
 from ..plate import PlateModel
 from .effects import EFFECTS, F_REF, EffectError, log_sinc_slope, temperature_params
+from .memo import method_lru
 from .modal import MIN_MAC_POINTS, ModalForward, SelectedModes, mac, pair_by_frequency
 from .waves import SafeWaves
 
-__all__ = ["ForwardModel"]
+__all__ = ["ForwardModel", "MODAL_KEPT"]
+
+#: modal forward models (plate models with effects built in) kept per ForwardModel
+MODAL_KEPT = 4
 
 
 class ForwardModel:
@@ -66,7 +69,11 @@ class ForwardModel:
         else:
             self.base = None
         self.safe = SafeWaves(features.laminate, features.material, safe_order)
-        self._modal_fw = lru_cache(maxsize=32)(self._build_modal_forward)
+        # few plate models at a time: each holds its matrices, mass data and modes (~4-8 MiB on
+        # the demo's mesh), and a refit of sensor_mass or support_stiffness makes a new one per
+        # trial value: with 32 kept, a 3-constant diagnosis of a sensor mass peaked at 347 MiB
+        # (bench/RESULTS.md, issue 29 session 24); the solves are deterministic, a miss re-solves
+        self._modal_fw = method_lru(self._build_modal_forward, MODAL_KEPT)
         self._sel: np.ndarray | None = None
         self.n_modal = 0 if features.modal is None else len(features.modal.frequency_hz)
         self.n_waves = [len(w.frequency_hz) for w in features.waves]

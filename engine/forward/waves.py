@@ -10,7 +10,6 @@ Units SI: Hz, m/s, Pa.
 """
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import Mapping
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy as np
 from ..fit import DataBlock
 from ..laminate import Laminate
 from ..safe import dispersion, group_velocity as safe_group_velocity
+from .memo import method_lru
 
 __all__ = ["wave_block", "SafeWaves"]
 
@@ -53,8 +53,8 @@ class SafeWaves:
 
     def __init__(self, laminate: Laminate, material: str | None = None, order: int | None = None):
         self.laminate, self.material, self.order = laminate, material, order
-        self._cg = lru_cache(maxsize=256)(self._group_velocity)
-        self._cp = lru_cache(maxsize=64)(self._phase_velocity)
+        self._cg = method_lru(self._group_velocity, 256)
+        self._cp = method_lru(self._phase_velocity, 64)
 
     def laminate_at(self, params: Mapping[str, float], thickness: float) -> Laminate:
         """The laminate with constants ``params`` (checked) and thickness scaled by 1 + ``thickness``."""

@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import replace
-from functools import lru_cache
 from typing import Mapping
 
 import numpy as np
@@ -41,6 +40,7 @@ import numpy as np
 from ..features import Features, WaveData
 from ..forward import ForwardModel, ModalForward, SelectedModes
 from ..forward.effects import F_REF, PLATE_EFFECTS, temperature_params
+from ..forward.memo import method_lru
 from ..laminate import Laminate, Ply
 
 __all__ = ["GapForward", "turned_laminate", "gradient_mass"]
@@ -103,7 +103,7 @@ class GapForward(ForwardModel):
         self.pairing = pairing
         # few models at a time: a refit moves the effect every evaluation, and each plate
         # model holds its matrices and factorisation (the parent caches 32: ~900 MiB)
-        self._plate_fw = lru_cache(maxsize=4)(self._build_plate_forward)
+        self._plate_fw = method_lru(self._build_plate_forward, 4)
         self._misalign = 0.0
 
     # -- modal -------------------------------------------------------------

@@ -12,6 +12,7 @@ Units SI: m, kg, s, Pa; eigenvalues lambda = omega^2 in rad^2/s^2.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
@@ -51,6 +52,17 @@ class Modes:
 
 
 
+@lru_cache(maxsize=3)
+def mesh_parts(mesh: Mesh) -> tuple[Pattern, dict]:
+    """(sparse pattern, mesh-only cache: rigid modes, DOF blocks) of ``mesh``, shared by every
+    model built on an equal mesh (read-only once built). A 3-constant ``labid diagnose`` built
+    the same two meshes five times (its estimate, the correction at the estimate, the gap's
+    model): 0.3 s CPU and ~40-80 MiB of transient arrays each time on the fine mesh
+    (bench/RESULTS.md, issue 29 session 24). The last three meshes are kept (the demo plate's
+    default and finer mesh, and one more)."""
+    return Pattern.build(mesh), {}
+
+
 class PlateModel:
     """Free-free laminated Mindlin plate: precomputed parts, solve per parameter set."""
 
@@ -59,7 +71,9 @@ class PlateModel:
         self.laminate, self.mesh, self.shear_factor = laminate, mesh, shear_factor
         if _parts is None:
             Kref, Mref = reference_matrices()
-            _parts = (Kref, Mref, Pattern.build(mesh), material_maps(laminate, shear_factor))
+            pat, mesh_cache = mesh_parts(mesh)
+            _parts = (Kref, Mref, pat, material_maps(laminate, shear_factor))
+            _cache = mesh_cache if _cache is None else _cache
         self._Ke, self._Me, self._pat, self._maps = _parts
         self._Kflat = reference_by_coefficient()   # (21, 6 x 6400): shared, read-only
         self._k_add = Added.none() if k_add is None else k_add

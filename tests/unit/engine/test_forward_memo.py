@@ -1,0 +1,72 @@
+"""Memory of the forward models (issue 29): caches do not keep dead models alive, and models
+on equal meshes share one sparse pattern without changing a result."""
+from __future__ import annotations
+
+import gc
+import weakref
+
+import numpy as np
+
+from engine.forward.memo import method_lru
+from engine.forward.modal import ModalForward
+from engine.plate import PlateModel
+from engine.plate.mesh import Mesh
+from engine.plate.model import mesh_parts
+from engine.plate.sparse import Pattern
+from labid.inputs.specimen import load_specimen
+
+SPEC = load_specimen("cfrp")
+MAT = next(iter(SPEC.laminate.materials))
+NOMINAL = SPEC.laminate.materials[MAT].params()
+
+
+class Owner:
+    def __init__(self):
+        self.calls = 0
+        self.f = method_lru(self.double, 2)
+
+    def double(self, x):
+        self.calls += 1
+        return 2 * x
+
+
+def test_method_lru_memoises_and_frees_its_owner_without_the_cyclic_collector():
+    o = Owner()
+    assert o.f(3) == 6 and o.f(3) == 6 and o.calls == 1
+    o.f(4), o.f(5), o.f(3)
+    assert o.calls == 4                # maxsize 2: 3 was evicted
+    gc.disable()
+    try:
+        r = weakref.ref(o)
+        del o
+        assert r() is None             # freed by reference counting, no gc.collect()
+    finally:
+        gc.enable()
+
+
+def test_a_solved_modal_forward_and_its_plate_model_are_freed_at_once():
+    model = PlateModel.build(SPEC.laminate, SPEC.length, SPEC.width, mesh=(4, 4))
+    fwd = ModalForward(model.with_point_masses([(0.05, 0.05, 0.002)]), 4, material=MAT)
+    f = fwd.predict(NOMINAL)
+    assert f.size == 4 and np.all(np.diff(f) > 0)
+    gc.disable()
+    try:
+        rf, rm = weakref.ref(fwd), weakref.ref(fwd.model)
+        del fwd
+        assert rf() is None and rm() is None
+    finally:
+        gc.enable()
+
+
+def test_models_on_equal_meshes_share_the_pattern_and_solve_alike():
+    mesh_parts.cache_clear()
+    a = PlateModel.build(SPEC.laminate, SPEC.length, SPEC.width, mesh=(4, 4))
+    b = PlateModel.build(SPEC.laminate, SPEC.length, SPEC.width, mesh=(4, 4))
+    assert mesh_parts.cache_info().hits == 1
+    fresh = Pattern.build(Mesh(4, 4, SPEC.length, SPEC.width))
+    pa = mesh_parts(Mesh(4, 4, SPEC.length, SPEC.width))[0]
+    for name in ("indptr", "indices", "elem_pos", "m_mask", "cross"):
+        assert np.array_equal(getattr(pa, name), getattr(fresh, name))
+    fa = a.solve(8, params=NOMINAL, material=MAT).frequencies_hz
+    fb = b.solve(8, params=NOMINAL, material=MAT).frequencies_hz
+    assert np.array_equal(fa, fb)
