@@ -93,6 +93,9 @@ def main() -> int:
         if fn is not None:
             import engine.identify.stages as stages
             stages._DISC_MEMO.clear()       # every workload pays its own fine-mesh correction
+            import engine.plate.model as plate_model
+            if hasattr(plate_model, "mesh_parts"):     # and builds its own meshes' patterns
+                plate_model.mesh_parts.cache_clear()
             with Counts() as c:
                 t = time.process_time()
                 fn()
