@@ -26,7 +26,7 @@ For each propagation direction of the wave sensors (``measure_waves``):
    maximum inside the target's predicted window (nominal velocity +- ``gate_margin``)
    that lies nearer the target's prediction than any foreign packet's; the frequency is
    dropped (and counted) where foreign packets (another mode, any reflection, the
-   excitation's crosstalk) reach ``leak_db`` of the pick's level at its time, or could
+   excitation's crosstalk, measured in the record) reach ``leak_db`` of the pick's level at its time, or could
    shift it by more than ``max_bias`` of the travel time (a first-order bound, which
    otherwise joins the pick's sigma); with the source time unknown the window also spans
    its possible range;
@@ -59,9 +59,9 @@ import numpy as np
 
 from .. import waves
 from .band import Band, analysis_band, default_wavelet, signal_band, snr_band
-from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of,
-                    locate_onset, noise_rms, nominal_cg, sensor_delay)
-from . import merge
+from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of, locate_onset,
+                    noise_rms, nominal_cg, sensor_delay)
+from . import crosstalk, merge
 from .survey import survey_direction, survey_onsets
 
 __all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet", "stack_shots",
@@ -166,7 +166,8 @@ def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.n
         src = cache[("src", force, wl)]
     out = {"source": src}
     path = far.distance_m - (near.distance_m if near is not None else 0.0)
-    a_far = arrivals_of(d, rec[far.channel], far, mode, wl, src, W(far.channel), path)
+    a_far = arrivals_of(d, rec[far.channel], far, mode, wl, src, W(far.channel), path, crosstalk.bound_in(
+        d, rec, far, wl, cache, W))
     # the curvature correction needs a dispersive mode: fitted to S0's nearly constant
     # delays its tau'' is noise (docs/wavelet-bias.md); S0 is reassigned only
     correct = d.settings.assign == "instantaneous" and mode == "A0"
@@ -176,7 +177,8 @@ def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.n
     if src is not None:
         g = waves.group_velocity(a_far, far.distance_m, src, assign=assign)
     elif near is not None:
-        a_near = arrivals_of(d, rec[near.channel], near, mode, wl, None, W(near.channel), path)
+        a_near = arrivals_of(d, rec[near.channel], near, mode, wl, None, W(near.channel), path,
+                             crosstalk.bound_in(d, rec, near, wl, cache, W))
         if correct:
             a_near = waves.correct_dispersion_bias(a_near)
         out["near"] = a_near
