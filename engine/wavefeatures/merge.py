@@ -119,25 +119,29 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
     return F[~bad], V[~bad], S[~bad], N[~bad]
 
 
-def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0) -> np.ndarray:
+def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e-3) -> np.ndarray:
     """Mask of points inconsistent with the smooth curve through the others: a group-velocity
     curve below the first cut-off is smooth in ln f, so a polynomial of ``degree`` in ln f is
     fitted (weights 1/sigma, iteratively leaving out the worst point) and a point farther
-    than ``k`` x max(its sigma, the robust scatter of the residuals) is flagged (a pick on the
-    wrong lobe of a packet split by a spectral notch, or on a residual echo). Fewer than
-    degree + 4 points: nothing is flagged."""
+    than ``k`` x the robust scatter of the residuals (not below ``floor`` x the median velocity)
+    is flagged (a pick on the wrong lobe of a packet split by a spectral notch, on a residual
+    echo, or on another ridge where one wavelet of the merge locked). A point's own sigma does
+    not excuse it: the bench's wrong-ridge points (bench/RESULTS.md, issue 24, session 24) came
+    with sigmas of 0.6-3.9 %, 1-4 sigma from the truth, while the curve through the others
+    scatters by 0.05-0.3 %. Fewer than degree + 4 points: nothing is flagged."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     bad = np.zeros(f.size, bool)
     if f.size < degree + 4:
         return bad
     x = np.log(f / f.max())
+    tol = floor * float(np.median(np.abs(v)))
     for _ in range(f.size // 4 + 1):
         keep = ~bad
         w = 1.0 / np.maximum(s[keep], 1e-3 * np.abs(v[keep]))
         c = np.polynomial.polynomial.polyfit(x[keep], v[keep], degree, w=w)
         res = v - np.polynomial.polynomial.polyval(x, c)
         mad = 1.4826 * float(np.median(np.abs(res[keep])))
-        z = np.abs(res) / (k * np.maximum(s, mad))
+        z = np.abs(res) / (k * max(mad, tol))
         z[bad] = 0.0
         j = int(np.argmax(z))
         if z[j] <= 1.0 or keep.sum() <= degree + 3:

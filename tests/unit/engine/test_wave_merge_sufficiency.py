@@ -56,6 +56,21 @@ def test_a_point_off_a_smooth_curve_is_flagged():
     assert list(np.flatnonzero(merge.off_curve(f, v, s))) == [5]
 
 
+def test_a_wrong_ridge_is_flagged_whatever_its_own_sigma():
+    """Session 24's sweep outlier: one point 11.8 % off with a 3.9 % sigma (3 sigma) among
+    points that scatter by 0.1 %: the curve through the others cannot support it; points
+    0.1 % off (noise) are kept."""
+    f = np.linspace(40e3, 280e3, 30)
+    v = 1000 + 240 * np.log(f / 40e3) / np.log(7.0)
+    rng = np.random.default_rng(1)
+    v = v * (1 + 1e-3 * rng.standard_normal(f.size))
+    s = 1e-3 * v
+    assert not merge.off_curve(f, v, s).any()
+    v[12] *= 1.118
+    s[12] = 0.039 * v[12]
+    assert list(np.flatnonzero(merge.off_curve(f, v, s))) == [12]
+
+
 def test_one_wave_point_for_four_constants_is_insufficient_data():
     """The case of issue 24: one point, four constants fitted: never a verdict on the fit."""
     r = assess([DataSet("waves", 1, "A0", 0.0, (180e3, 180e3))], ("E1", "E2", "G13", "G23"))
