@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import waves
 
-__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "off_curve"]
+__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "off_curve", "scattered", "names"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
 
@@ -148,3 +148,33 @@ def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e
             break
         bad[j] = True
     return bad
+
+
+def scattered(f_hz, v, sigma, limit: float = 0.01) -> str:
+    """Why a curve's points cannot stand together ('' when they can): below the first cut-off a
+    group-velocity curve is smooth, so points that scatter about a line in ln f (a cubic from 7
+    points on) by more than ``limit`` (robust, relative) while their own sigmas are under half
+    that are picks on different ridges or packets, not a curve (issue 24, session 24: the real
+    Yeum et al. S0 from a mode-separated record, 5 points scattering by 4 %, sigmas 0.02-0.7 %,
+    where an imperfectly cancelled A0 trails S0 within the burst's length). Fewer than 3 points:
+    ''."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    if f.size < 3:
+        return ""
+    x = np.log(f / f.max())
+    c = np.polynomial.polynomial.polyfit(x, v, 3 if f.size >= 7 else 1)
+    rel = (v - np.polynomial.polynomial.polyval(x, c)) / v
+    spread = 1.4826 * float(np.median(np.abs(rel - np.median(rel))))
+    own = float(np.median(s / v))
+    if spread > limit and own < 0.5 * spread:
+        return (f"its {f.size} points scatter by {100 * spread:.1f} % about a smooth curve while their sigmas "
+                f"say {100 * own:.2f} %: picks on different packets or ridges")
+    return ""
+
+
+def names(which, mask) -> str:
+    """The wavelets behind the points of ``mask``, e.g. 'cmor2-1 (4), cmor1-1 (2)'."""
+    n: dict = {}
+    for i in np.flatnonzero(mask):
+        n[which[i].name] = n.get(which[i].name, 0) + 1
+    return ", ".join(f"{k} ({v})" for k, v in n.items())

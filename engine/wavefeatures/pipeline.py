@@ -326,14 +326,6 @@ def _first_shot(d: Direction, settings: WaveSettings, shots) -> dict:
     return {wl: _measure(d, wl, shots, first_only=True)[0][0] for wl in cands}
 
 
-def _names(which, mask) -> str:
-    """The wavelets behind the points of ``mask``, e.g. 'cmor2-1 (4), cmor1-1 (2)'."""
-    n: dict = {}
-    for i in np.flatnonzero(mask):
-        n[which[i].name] = n.get(which[i].name, 0) + 1
-    return ", ".join(f"{k} ({v})" for k, v in n.items())
-
-
 def _wavelet_note(d: Direction, first: dict, used: list, combined: dict, which: dict) -> str:
     """Which wavelets measured which frequencies, and the candidates' first-shot counts."""
     f = d.freqs
@@ -486,13 +478,17 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             if bad.any():
                 counts[mode]["off the smooth curve"] = int(bad.sum())
                 ok[np.flatnonzero(ok)[bad]] = False
+            spread = merge.scattered(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok])
+            if spread:
+                notes.append(f"{mode} along {direction:g} deg: {spread}; not reported")
+                continue
             out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
                                  dict(counts[mode])))
-            how = "source to sensor" if far is not None and near is None and setup.force_channel is not None \
-                else ("two sensors" if near is not None else "from the trigger time")
+            how = ("two sensors" if near is not None else "from the trigger time") if setup.force_channel is None \
+                or near is not None else "source to sensor"
             notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} independent frequencies "
                          f"{freqs[ok].min() / 1e3:.3g}-{freqs[ok].max() / 1e3:.3g} kHz from {len(shots)} shot(s), "
-                         f"{_names(which[mode], ok)}, {how}; dropped: {why or 'none'}")
+                         f"{merge.names(which[mode], ok)}, {how}; dropped: {why or 'none'}")
         if path_m is None:
             far, near = d.pair("A0") if d.pair("A0")[0] is not None else d.pair("S0")
             path_m = far.distance_m - (near.distance_m if near is not None else 0.0)

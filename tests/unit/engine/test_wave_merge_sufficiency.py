@@ -84,3 +84,17 @@ def test_enough_points_pass_and_modal_counts():
     r = assess([DataSet("modal", 10), DataSet("waves", 8, "A0", 0.0, (20e3, 200e3)),
                 DataSet("waves", 6, "A0", 90.0, (20e3, 200e3))], ("E1", "E2", "G12", "G13", "G23", "nu12"))
     assert r.enough and r.verdict is None and r.n_points == 24 and r.n_params == 6
+
+
+def test_points_that_scatter_beyond_their_sigmas_are_not_a_curve():
+    """Session 24, real Yeum et al. S0 from (A + C) / 2: 5 points 5066-5559 m/s (4 % scatter)
+    each claiming 0.02-0.7 %: not a curve. A smooth A0 curve with 0.1 % noise is one."""
+    f = np.array([140e3, 158e3, 177e3, 199e3, 223e3])
+    v = np.array([5559.0, 5066.0, 5435.0, 5131.0, 5328.0])
+    s = np.array([3.0, 35.0, 38.0, 1.0, 1.0])
+    assert "scatter by" in merge.scattered(f, v, s)
+    g = np.linspace(40e3, 280e3, 20)
+    a0 = (1000 + 240 * np.log(g / 40e3) / np.log(7.0)) * (1 + 1e-3 * np.random.default_rng(2).standard_normal(20))
+    assert merge.scattered(g, a0, 1e-3 * a0) == ""
+    # the same scatter with sigmas that own it is a noisy curve, not a wrong one
+    assert merge.scattered(f, v, 0.05 * v) == ""
