@@ -152,17 +152,17 @@ def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e
 
 def scattered(f_hz, v, sigma, limit: float = 0.01) -> str:
     """Why a curve's points cannot stand together ('' when they can): below the first cut-off a
-    group-velocity curve is smooth, so points that scatter about a line in ln f (a cubic from 7
-    points on) by more than ``limit`` (robust, relative) while their own sigmas are under half
+    group-velocity curve is smooth, so points that scatter about a parabola in ln f (a cubic
+    from 7 points on; A0's dispersion bends a line by ~1 % over an octave) by more than ``limit`` (robust, relative) while their own sigmas are under half
     that are picks on different ridges or packets, not a curve (issue 24, session 24: the real
     Yeum et al. S0 from a mode-separated record, 5 points scattering by 4 %, sigmas 0.02-0.7 %,
-    where an imperfectly cancelled A0 trails S0 within the burst's length). Fewer than 3 points:
+    where an imperfectly cancelled A0 trails S0 within the burst's length). Fewer than 4 points:
     ''."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
-    if f.size < 3:
+    if f.size < 4:
         return ""
     x = np.log(f / f.max())
-    c = np.polynomial.polynomial.polyfit(x, v, 3 if f.size >= 7 else 1)
+    c = np.polynomial.polynomial.polyfit(x, v, 3 if f.size >= 7 else 2)
     rel = (v - np.polynomial.polynomial.polyval(x, c)) / v
     spread = 1.4826 * float(np.median(np.abs(rel - np.median(rel))))
     own = float(np.median(s / v))
