@@ -128,8 +128,8 @@ def main(argv) -> None:
         "sweep": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz, 2 shots each, MFCs 10 / 25 cm along 0 / 90 deg)",
                                         sweep, large, 10, sc, m),
         # session 24: the layouts a lab would choose for S0 (the rig files say why)
-        "two_dir_s0": lambda sc, m: run_case("1 m CFRP plate (24 pencil breaks at (0.35, 0.35), MFCs 20 / 40 cm along 0 "
-                                             "and 90 deg)", two_dir_s0, large, 24, sc, m),
+        "two_dir_s0": lambda sc, m: run_case("1 m CFRP plate (24 pencil breaks at (0.35, 0.35), MFCs 20 / 40 cm "
+                                             "along 0 and 90 deg)", two_dir_s0, large, 24, sc, m),
         "sweep_far": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz at (0.35, 0.35), 2 shots each, MFCs "
                                             "20 / 40 cm along 0 / 90 deg)", sweep_far, large, 10, sc, m),
     }

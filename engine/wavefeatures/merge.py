@@ -153,7 +153,8 @@ def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e
 def scattered(f_hz, v, sigma, limit: float = 0.01) -> str:
     """Why a curve's points cannot stand together ('' when they can): below the first cut-off a
     group-velocity curve is smooth, so points that scatter about a parabola in ln f (a cubic
-    from 7 points on; A0's dispersion bends a line by ~1 % over an octave) by more than ``limit`` (robust, relative) while their own sigmas are under half
+    from 7 points on; A0's dispersion bends a line by ~1 % over an octave) by more than
+    ``limit`` (robust, relative) while their own sigmas are under half
     that are picks on different ridges or packets, not a curve (issue 24, session 24: the real
     Yeum et al. S0 from a mode-separated record, 5 points scattering by 4 %, sigmas 0.02-0.7 %,
     where an imperfectly cancelled A0 trails S0 within the burst's length). Fewer than 4 points:
