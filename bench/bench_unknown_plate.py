@@ -118,11 +118,20 @@ def main(argv) -> None:
     two_dir = rig_from_text((HERE / "rigs" / "cfrp_pencil_2dir.toml").read_text(), "bench/rigs/cfrp_pencil_2dir.toml")
     sweep = rig_from_text((HERE / "rigs" / "cfrp_pzt_sweep_2dir.toml").read_text(),
                           "bench/rigs/cfrp_pzt_sweep_2dir.toml")
+    two_dir_s0 = rig_from_text((HERE / "rigs" / "cfrp_pencil_2dir_s0.toml").read_text(),
+                               "bench/rigs/cfrp_pencil_2dir_s0.toml")
+    sweep_far = rig_from_text((HERE / "rigs" / "cfrp_pzt_sweep_2dir_far.toml").read_text(),
+                              "bench/rigs/cfrp_pzt_sweep_2dir_far.toml")
     cases = {
         "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
         "two_dir": lambda sc, m: run_case("1 m CFRP plate (pencil at the centre, MFCs 10 / 25 cm along 0 and 90 deg)", two_dir, large, 3, sc, m),
         "sweep": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz, 2 shots each, MFCs 10 / 25 cm along 0 / 90 deg)",
                                         sweep, large, 10, sc, m),
+        # session 24: the layouts a lab would choose for S0 (the rig files say why)
+        "two_dir_s0": lambda sc, m: run_case("1 m CFRP plate (24 pencil breaks at (0.35, 0.35), MFCs 20 / 40 cm "
+                                             "along 0 and 90 deg)", two_dir_s0, large, 24, sc, m),
+        "sweep_far": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz at (0.35, 0.35), 2 shots each, MFCs "
+                                            "20 / 40 cm along 0 / 90 deg)", sweep_far, large, 10, sc, m),
     }
     pick = [a for a in argv if a in cases] or list(cases)
     models = [a for a in argv if a in ("simulated", "independent")] or ["simulated"]

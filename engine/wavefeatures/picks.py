@@ -262,9 +262,11 @@ def _src_time(d: Direction, wl: waves.Wavelet, src_arr: waves.Arrivals | None) -
 
 def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: waves.Wavelet,
               src_arr: waves.Arrivals | None, W: np.ndarray | None = None,
-              path_m: float = 1.0) -> waves.Arrivals:
+              path_m: float = 1.0, xtalk: np.ndarray | None = None) -> waves.Arrivals:
     """Arrivals of ``mode``'s direct packet at sensor ``s`` (None: the source record, no
-    gate); ``path_m``: the measured path (the bias bound is relative to its travel time)."""
+    gate); ``path_m``: the measured path (the bias bound is relative to its travel time);
+    ``xtalk``: the bound of the source's crosstalk in this record, on ``W``'s grid
+    (``crosstalk_of``; None: no electrical source)."""
     fs, pre, freqs = d.setup.fs_hz, d.setup.pretrigger, d.freqs
     W = waves.cwt(x, fs, freqs, wl) if W is None else W
     noise = noise_rms(x, pre, fs, freqs, wl)
@@ -286,7 +288,6 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         return _rejected(freqs, wl, reason)
     A = np.abs(W)
     t = (np.arange(A.shape[1]) - pre) / fs
-    src_spread = source_signature(d.setup.source, freqs, wl)[1]
 
     ranges = {}
     for p in pk:     # where each packet may lie on the record axis: (earliest, latest) per frequency
@@ -345,15 +346,12 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         if best is None:
             reason[i] = "no packet at the predicted time" if peaks.size else "peak on the window edge"
             continue
-        # the wavelet must not straddle the source time: a pick within one of its time stds of
-        # the onset mixes the source's own transient (a lead break's step, a burst's crosstalk)
-        # into the packet (measured: 1-2 % at the low end of a pencil's band, 6 cm from it)
+        # a dispersive packet within one wavelet time std of the onset is not yet formed (A0's
+        # near field: 1-2 % at the low end of a pencil's band, 6 cm from it); S0, barely
+        # dispersive, arrives as the source pulse itself, and an electrical source's crosstalk
+        # is measured in the record (``crosstalk``, below): S0 is not held to it (issue 24)
         guard = float(wl.time_std_s(freqs[i]))
-        if d.setup.source.electrical and src_arr is None:
-            # an electrical source whose record is missing: its crosstalk lasts as long as the
-            # excitation and cannot be measured here, so the packet must come after it
-            guard += 2.0 * float(src_spread[i])
-        if t[best] - hi_s[i] < guard:
+        if mode.startswith("A") and t[best] - hi_s[i] < guard:
             reason[i] = "within a wavelet length of the source time"
             continue
         gate_lo[i], gate_hi[i] = t[best] - 0.75 * sig, t[best] + 0.75 * sig
@@ -363,9 +361,6 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
     why = list(arr.reason)
     leak_max = 10 ** (d.settings.leak_db / 20)
     foreign = []          # per frequency: [(level at the pick, time-shift bound, label)]
-    xt = None
-    if d.setup.source.electrical and src_arr is not None:
-        xt = (np.where(src_arr.valid, src_arr.times_s, np.nan), source_signature(d.setup.source, freqs, wl)[1])
     bias_s = np.zeros(nf)
     s_delay = sensor_delay(s, freqs)
     c_src = source_signature(d.setup.source, freqs, wl)[0] + s_delay
@@ -424,17 +419,14 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
             rho = rel * math.exp(-0.5 * (g / sp) ** 2)
             items.append((rho, rho * max(g, sp) * st * st / (sp * sp), f"{p.mode} {p.path}",
                           (p.mode, round(p.length_m, 3))))
-        if xt is not None and np.isfinite(xt[0][i]):
-            # the excitation's crosstalk sits at the source time (no sensor response): its
-            # level is measured in this record, its width is the source's own
-            ts, sx = xt[0][i], xt[1][i]
-            k0 = max(int(np.floor((ts - 0.5 * sx - t[0]) * fs)), 0)
-            k1 = min(int(np.ceil((ts + 0.5 * sx - t[0]) * fs)) + 1, A.shape[1])
-            kc = min(max(int(round((tc - t[0]) * fs)), 0), A.shape[1] - 1)
-            if k1 > k0 and A[i, kc] > 0:
-                g = abs(tc - ts)
-                rho = A[i, k0:k1].max() / A[i, kc] * math.exp(-0.5 * (g / sx) ** 2)
-                items.append((rho, rho * max(g, sx) * st * st / (sx * sx), "crosstalk", "crosstalk"))
+        if xtalk is not None:
+            # the excitation's crosstalk as measured in this record (``crosstalk_of``): its level
+            # and slope at the pick bound the shift like a foreign packet's
+            kc = min(max(int(round((tc - t[0]) * fs)), 1), A.shape[1] - 2)
+            if A[i, kc] > 0:
+                ax = float(xtalk[i, kc - 1:kc + 2].max())
+                dax = float(np.abs(np.diff(xtalk[i, kc - 1:kc + 2])).max()) * fs
+                items.append((ax / A[i, kc], (st * st * dax + 0.7 * st * ax) / A[i, kc], "crosstalk", "crosstalk"))
         if not items:
             continue
         # packets of one mode over paths of equal length (two edges at the same distance)

@@ -26,7 +26,7 @@ For each propagation direction of the wave sensors (``measure_waves``):
    maximum inside the target's predicted window (nominal velocity +- ``gate_margin``)
    that lies nearer the target's prediction than any foreign packet's; the frequency is
    dropped (and counted) where foreign packets (another mode, any reflection, the
-   excitation's crosstalk) reach ``leak_db`` of the pick's level at its time, or could
+   excitation's crosstalk, measured in the record) reach ``leak_db`` of the pick's level at its time, or could
    shift it by more than ``max_bias`` of the travel time (a first-order bound, which
    otherwise joins the pick's sigma); with the source time unknown the window also spans
    its possible range;
@@ -59,9 +59,9 @@ import numpy as np
 
 from .. import waves
 from .band import Band, analysis_band, default_wavelet, signal_band, snr_band
-from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of,
-                    locate_onset, noise_rms, nominal_cg, sensor_delay)
-from . import merge
+from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of, locate_onset,
+                    noise_rms, nominal_cg, sensor_delay)
+from . import crosstalk, merge
 from .survey import survey_direction, survey_onsets
 
 __all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet", "stack_shots",
@@ -166,7 +166,8 @@ def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.n
         src = cache[("src", force, wl)]
     out = {"source": src}
     path = far.distance_m - (near.distance_m if near is not None else 0.0)
-    a_far = arrivals_of(d, rec[far.channel], far, mode, wl, src, W(far.channel), path)
+    a_far = arrivals_of(d, rec[far.channel], far, mode, wl, src, W(far.channel), path, crosstalk.bound_in(
+        d, rec, far, wl, cache, W))
     # the curvature correction needs a dispersive mode: fitted to S0's nearly constant
     # delays its tau'' is noise (docs/wavelet-bias.md); S0 is reassigned only
     correct = d.settings.assign == "instantaneous" and mode == "A0"
@@ -176,7 +177,8 @@ def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.n
     if src is not None:
         g = waves.group_velocity(a_far, far.distance_m, src, assign=assign)
     elif near is not None:
-        a_near = arrivals_of(d, rec[near.channel], near, mode, wl, None, W(near.channel), path)
+        a_near = arrivals_of(d, rec[near.channel], near, mode, wl, None, W(near.channel), path,
+                             crosstalk.bound_in(d, rec, near, wl, cache, W))
         if correct:
             a_near = waves.correct_dispersion_bias(a_near)
         out["near"] = a_near
@@ -322,14 +324,6 @@ def _first_shot(d: Direction, settings: WaveSettings, shots) -> dict:
     if len(cands) == 1:
         return {cands[0]: None}
     return {wl: _measure(d, wl, shots, first_only=True)[0][0] for wl in cands}
-
-
-def _names(which, mask) -> str:
-    """The wavelets behind the points of ``mask``, e.g. 'cmor2-1 (4), cmor1-1 (2)'."""
-    n: dict = {}
-    for i in np.flatnonzero(mask):
-        n[which[i].name] = n.get(which[i].name, 0) + 1
-    return ", ".join(f"{k} ({v})" for k, v in n.items())
 
 
 def _wavelet_note(d: Direction, first: dict, used: list, combined: dict, which: dict) -> str:
@@ -484,13 +478,17 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             if bad.any():
                 counts[mode]["off the smooth curve"] = int(bad.sum())
                 ok[np.flatnonzero(ok)[bad]] = False
+            spread = merge.scattered(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok])
+            if spread:
+                notes.append(f"{mode} along {direction:g} deg: {spread}; not reported")
+                continue
             out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
                                  dict(counts[mode])))
-            how = "source to sensor" if far is not None and near is None and setup.force_channel is not None \
-                else ("two sensors" if near is not None else "from the trigger time")
+            how = ("two sensors" if near is not None else "from the trigger time") if setup.force_channel is None \
+                or near is not None else "source to sensor"
             notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} independent frequencies "
                          f"{freqs[ok].min() / 1e3:.3g}-{freqs[ok].max() / 1e3:.3g} kHz from {len(shots)} shot(s), "
-                         f"{_names(which[mode], ok)}, {how}; dropped: {why or 'none'}")
+                         f"{merge.names(which[mode], ok)}, {how}; dropped: {why or 'none'}")
         if path_m is None:
             far, near = d.pair("A0") if d.pair("A0")[0] is not None else d.pair("S0")
             path_m = far.distance_m - (near.distance_m if near is not None else 0.0)

@@ -56,6 +56,21 @@ def test_a_point_off_a_smooth_curve_is_flagged():
     assert list(np.flatnonzero(merge.off_curve(f, v, s))) == [5]
 
 
+def test_a_wrong_ridge_is_flagged_whatever_its_own_sigma():
+    """Session 24's sweep outlier: one point 11.8 % off with a 3.9 % sigma (3 sigma) among
+    points that scatter by 0.1 %: the curve through the others cannot support it; points
+    0.1 % off (noise) are kept."""
+    f = np.linspace(40e3, 280e3, 30)
+    v = 1000 + 240 * np.log(f / 40e3) / np.log(7.0)
+    rng = np.random.default_rng(1)
+    v = v * (1 + 1e-3 * rng.standard_normal(f.size))
+    s = 1e-3 * v
+    assert not merge.off_curve(f, v, s).any()
+    v[12] *= 1.118
+    s[12] = 0.039 * v[12]
+    assert list(np.flatnonzero(merge.off_curve(f, v, s))) == [12]
+
+
 def test_one_wave_point_for_four_constants_is_insufficient_data():
     """The case of issue 24: one point, four constants fitted: never a verdict on the fit."""
     r = assess([DataSet("waves", 1, "A0", 0.0, (180e3, 180e3))], ("E1", "E2", "G13", "G23"))
@@ -69,3 +84,17 @@ def test_enough_points_pass_and_modal_counts():
     r = assess([DataSet("modal", 10), DataSet("waves", 8, "A0", 0.0, (20e3, 200e3)),
                 DataSet("waves", 6, "A0", 90.0, (20e3, 200e3))], ("E1", "E2", "G12", "G13", "G23", "nu12"))
     assert r.enough and r.verdict is None and r.n_points == 24 and r.n_params == 6
+
+
+def test_points_that_scatter_beyond_their_sigmas_are_not_a_curve():
+    """Session 24, real Yeum et al. S0 from (A + C) / 2: 5 points 5066-5559 m/s (4 % scatter)
+    each claiming 0.02-0.7 %: not a curve. A smooth A0 curve with 0.1 % noise is one."""
+    f = np.array([140e3, 158e3, 177e3, 199e3, 223e3])
+    v = np.array([5559.0, 5066.0, 5435.0, 5131.0, 5328.0])
+    s = np.array([3.0, 35.0, 38.0, 1.0, 1.0])
+    assert "scatter by" in merge.scattered(f, v, s)
+    g = np.linspace(40e3, 280e3, 20)
+    a0 = (1000 + 240 * np.log(g / 40e3) / np.log(7.0)) * (1 + 1e-3 * np.random.default_rng(2).standard_normal(20))
+    assert merge.scattered(g, a0, 1e-3 * a0) == ""
+    # the same scatter with sigmas that own it is a noisy curve, not a wrong one
+    assert merge.scattered(f, v, 0.05 * v) == ""

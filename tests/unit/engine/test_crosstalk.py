@@ -1,0 +1,62 @@
+"""The excitation's crosstalk measured from the record (engine.wavefeatures.crosstalk; issue 24).
+
+Records made here with numpy only: a Hann burst as the drive, a sensor record holding a known
+fraction of it (the crosstalk) plus a wave packet that leaves later, plus white noise. The bound
+must hold the true coupling, stay near it when the wave-free window holds most of the drive,
+ignore the packet after the first arrival, and give up (inf) on an empty window.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from engine.wavefeatures.crosstalk import coupling_bound, noise_std
+
+FS = 5.0e6
+PRE = 400
+F0, CYCLES = 150e3, 5
+
+
+def _burst(t, t0=0.0):
+    T = CYCLES / F0
+    u = t - t0
+    return np.where((u >= 0) & (u <= T), np.sin(np.pi * u / T) ** 2 * np.sin(2 * np.pi * F0 * u), 0.0)
+
+
+@pytest.fixture(scope="module")
+def case():
+    t = (np.arange(4000) - PRE) / FS
+    drive = 10.0 * _burst(t)                          # V, onset at t = 0 (sample PRE)
+    rng = np.random.default_rng(3)
+    c_true = 1e-4
+    delay = 60e-6                                      # the packet leaves the source's time
+    x = c_true * drive + 5e-3 * _burst(t, delay) + 2e-5 * rng.standard_normal(t.size) + 1e-3
+    return t, drive, x, c_true, int(round(delay * FS)) + PRE
+
+
+def test_noise_std_is_the_quiet_part(case):
+    t, drive, x, c, k_first = case
+    std, base = noise_std(x, PRE)
+    assert std == pytest.approx(2e-5, rel=0.3)
+    assert base == pytest.approx(1e-3, abs=1e-5)
+
+
+def test_bound_holds_the_true_coupling_and_ignores_the_later_packet(case):
+    t, drive, x, c, k_first = case
+    b = coupling_bound(x, drive, PRE, k_first, noise_std(x, PRE))
+    # the whole burst (33 us) lies before the packet's arrival (60 us): the bound is tight
+    assert c <= b <= 1.5 * c
+    # a window reaching into the packet takes it for crosstalk: the bound only grows
+    b_late = coupling_bound(x, drive, PRE, k_first + 300, noise_std(x, PRE))
+    assert b_late > 3 * c
+
+
+def test_bound_grows_when_the_window_holds_little_of_the_drive(case):
+    t, drive, x, c, k_first = case
+    short = coupling_bound(x, drive, PRE, PRE + 20, noise_std(x, PRE))    # the first 4 us
+    assert short >= c
+    assert short > coupling_bound(x, drive, PRE, k_first, noise_std(x, PRE))
+    assert math.isinf(coupling_bound(x, drive, PRE, PRE + 1, noise_std(x, PRE)))
+    assert math.isinf(coupling_bound(x, drive, 0, PRE, noise_std(x, PRE)))     # before the onset: no drive
