@@ -3,8 +3,11 @@
 Run (one nice process; resumes from --out):
   OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_gap_independent.py [--plan calibration|effects|all]
       [--only KIND=N,...] [--out bench/gap_independent_cases.jsonl] [--summary-only]
+      [--waves legendre|safe] [--with-waves]
 
-Each case: the features from the Ritz plate / SAFE at a higher order, diagnosed as a lab would
+Each case: the features from the Ritz plate and, for wave data, the independent Legendre SAFE
+(``--waves legendre``, the default since session 24; ``safe``: engine.safe at a higher order,
+the generator of session 23's rows, which carry no ``wave_generator``), diagnosed as a lab would
 (``labid.workflows.diagnosis.run_diagnosis``: modal only -> E1, E2, G12 (E, G); with waves ->
 all six constants with a 30 % prior). For an effect case the oracle is the chi^2 that the
 noise-free data leave after labid identify's fit of the constants alone (same parameters,
@@ -29,7 +32,7 @@ from scipy import stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.blind_independent import KINDS, LIBRARY, OUT_OF_LIBRARY, draw  # noqa: E402
+from bench.blind_independent import KINDS, LIBRARY, OUT_OF_LIBRARY, WAVE_GENERATORS, draw, recipe  # noqa: E402
 from labid.base import progress  # noqa: E402
 from labid.workflows.diagnosis import run_diagnosis  # noqa: E402
 from labid.workflows.identification import estimation  # noqa: E402
@@ -66,13 +69,20 @@ def oracle(case) -> float:
         return float("nan")
 
 
-def run_case(seed: int, kind: str) -> dict:
+def generator_of(r: dict) -> str:
+    """Who made a row's wave data: 'legendre', 'safe' (session 23's rows carry no field) or '-'."""
+    if r["data"] == "modal":
+        return "-"
+    return r.get("wave_generator") or "safe"
+
+
+def run_case(seed: int, kind: str, waves: str = "legendre") -> dict:
     t0 = time.process_time()
-    case = draw(seed, kind)
+    case = draw(seed, kind, wave_generator=waves)
     t1 = time.process_time()
     row = {"seed": seed, "kind": kind, "specimen": case.specimen, "data": case.data, "n_modes": case.n_modes,
            "noise": case.noise, "magnitude": case.magnitude, "params": case.params, "prior": case.prior,
-           "cpu_generate": t1 - t0}
+           "wave_generator": case.detail["wave_generator"], "cpu_generate": t1 - t0}
     try:
         res = run_diagnosis(case.features, names=case.params, prior=case.prior)
     except Exception as exc:  # noqa: BLE001 - recorded as a failed case
@@ -139,10 +149,10 @@ def summary(rows: list[dict]) -> str:
         lo, hi = clopper_pearson(len(fa), len(clean))
         out.append(f"- clean: false alarms {len(fa)} of {len(clean)} = {len(fa) / len(clean):.1%} "
                    f"(95 % CI {lo:.1%}-{hi:.1%}); verdicts {dict(Counter(r['verdict'] for r in clean))}")
-        for key in ("specimen", "data"):
+        for key in ("specimen", "data", "waves by"):
             parts = defaultdict(list)
             for r in clean:
-                parts[r[key]].append(r["verdict"] != "none")
+                parts[generator_of(r) if key == "waves by" else r[key]].append(r["verdict"] != "none")
             out.append(f"  - by {key}: " + ", ".join(f"{k} {sum(v)}/{len(v)}" for k, v in sorted(parts.items())))
         for lo_n, hi_n in ((10, 20), (21, 30), (31, 40)):
             sel = [r for r in clean if lo_n <= r["n_modes"] <= hi_n]
@@ -198,6 +208,10 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=None, help="KIND=N,... instead of the plan")
     ap.add_argument("--out", default="bench/gap_independent_cases.jsonl")
     ap.add_argument("--summary-only", action="store_true")
+    ap.add_argument("--waves", default="legendre", choices=WAVE_GENERATORS,
+                    help="generator of the wave data (default: the independent Legendre SAFE)")
+    ap.add_argument("--with-waves", action="store_true",
+                    help="only the cases of the plan whose data hold waves (re-running them with --waves)")
     a = ap.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     progress.set_quiet(True)          # this bench prints its own progress line per case
@@ -217,6 +231,8 @@ def main(argv=None) -> int:
                 r = json.loads(line)
                 done[(r["seed"], r["kind"])] = r
     jobs = sorted(((i, 1 + i, kind) for kind, count in plan for i in range(count)), key=lambda j: (j[0], j[2]))
+    if a.with_waves:
+        jobs = [j for j in jobs if recipe(j[1], j[2])["data"] != "modal"]
     rows = []
     todo = [j for j in jobs if (j[1], j[2]) not in done]
     for n_done, (_, seed, kind) in enumerate(jobs):
@@ -225,7 +241,7 @@ def main(argv=None) -> int:
             continue
         if a.summary_only:
             continue
-        r = run_case(seed, kind)
+        r = run_case(seed, kind, a.waves)
         rows.append(r)
         with out.open("a") as fh:
             fh.write(json.dumps(r) + "\n")

@@ -1,5 +1,6 @@
 """The gap diagnosis on data its own models did not make (issue 28): the independent
-generator (bench/blind_independent.py: Rayleigh-Ritz plate, SAFE at a higher order)."""
+generator (bench/blind_independent.py: Rayleigh-Ritz plate; group velocities from the
+independent Legendre SAFE, bench/independent/legendre_safe.py)."""
 from __future__ import annotations
 
 import dataclasses
@@ -7,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from bench.blind_independent import draw
+from bench.blind_independent import SPECIMENS, draw, legendre_group_velocity, legendre_plies
 from bench.gap_effect_models import shifts
 from labid.base import progress
 from labid.workflows.diagnosis import run_diagnosis
@@ -61,3 +62,53 @@ def test_density_gradient_model_shifts_the_modes_as_the_independent_density_fiel
     ritz, engine = shifts("aluminium", "density_gradient", 0.10, n=8, order=8, elements=8)
     assert np.abs(ritz).max() > 2e-3                      # the effect is there
     assert np.abs(engine - ritz).max() < 5e-5
+
+
+def test_generator_wave_velocities_are_the_exact_rayleigh_lamb_ones():
+    """The generator's A0/S0 (labels by root order, isotropic E, G table read as the bench reads
+    it) against the exact Rayleigh-Lamb group velocities of ORACLES.md (aluminium E = 70 GPa,
+    nu = 0.33, 2700 kg/m^3, h = 1 mm; f h = 0.1, 0.5, 1.0 MHz mm): within 1e-6."""
+    E, nu = 70e9, 0.33
+    table = {"plate": {"length": 0.3, "width": 0.2},
+             "materials": {"Al": {"density": 2700.0, "E": E, "G": E / (2 * (1 + nu))}},
+             "layup": {"material": "Al", "angles_deg": [0], "ply_thickness": 1e-3}}
+    plies = legendre_plies(table, {})
+    f = np.array([0.1e6, 0.5e6, 1.0e6])
+    assert legendre_group_velocity(plies, "A0", 0.0, f, 8) == pytest.approx([1783.696, 2908.787, 3137.051], rel=1e-6)
+    assert legendre_group_velocity(plies, "S0", 30.0, f, 8) == pytest.approx([5391.689, 5335.510, 5118.634], rel=1e-6)
+
+
+def test_generator_labels_the_cfrp_laminate_modes_by_their_thin_plate_limits():
+    """The 12-ply CFRP of the bench at 500 Hz: S0 tends to the classical-lamination plate
+    velocity sqrt(A_ii / rho h) (within 1e-5 along 0 and 90 deg), A0 to the Kirchhoff flexural
+    group velocity 2 (D_ii / rho h)^(1/4) sqrt(w) (within 1 %: the 3D shear and rotary inertia
+    corrections, which grow with f). A, D from the plane-stress ply stiffness, computed here."""
+    table = SPECIMENS["cfrp"][0]()
+    plies = legendre_plies(table, {})
+    A, D, rho_h, z = np.zeros((3, 3)), np.zeros((3, 3)), 0.0, -sum(t for _, _, t in plies) / 2
+    for c, ang, t in plies:
+        n21 = c["nu12"] * c["E2"] / c["E1"]
+        d = 1 - c["nu12"] * n21
+        Q = np.array([[c["E1"] / d, c["nu12"] * c["E2"] / d, 0], [c["nu12"] * c["E2"] / d, c["E2"] / d, 0],
+                      [0, 0, c["G12"]]])
+        m, n = np.cos(np.radians(ang)), np.sin(np.radians(ang))
+        T = np.array([[m * m, n * n, 2 * m * n], [n * n, m * m, -2 * m * n], [-m * n, m * n, m * m - n * n]])
+        R = np.diag([1.0, 1.0, 2.0])
+        Qb = np.linalg.inv(T) @ Q @ R @ T @ np.linalg.inv(R)
+        A += Qb * t
+        D += Qb * ((z + t) ** 3 - z ** 3) / 3
+        rho_h += c["density"] * t
+        z += t
+    f, w = 500.0, 2 * np.pi * 500.0
+    for i, direction in ((0, 0.0), (1, 90.0)):
+        s0 = legendre_group_velocity(plies, "S0", direction, [f], 3)[0]
+        a0 = legendre_group_velocity(plies, "A0", direction, [f], 3)[0]
+        assert s0 == pytest.approx(np.sqrt(A[i, i] / rho_h), rel=1e-5)
+        assert a0 == pytest.approx(2 * (D[i, i] / rho_h) ** 0.25 * np.sqrt(w), rel=1e-2)
+        assert a0 < 0.1 * s0
+
+
+def test_generator_records_which_wave_model_made_a_case():
+    case = draw(11, "clean", specimen="aluminium", data="waves", noise=0.002, wave_sets=(("S0", 0.0, 2),))
+    assert case.detail["wave_generator"] == "legendre"
+    assert draw(11, "clean", specimen="aluminium", data="modal", n_modes=10).detail["wave_generator"] is None
