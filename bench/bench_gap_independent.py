@@ -141,6 +141,59 @@ def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     return lo, hi
 
 
+def _ci(k: int, n: int) -> str:
+    lo, hi = clopper_pearson(k, n)
+    return f"{lo:.0%}-{hi:.0%}" if n else "-"
+
+
+def tables(rows: list[dict], plan: list[tuple[str, int]]) -> str:
+    """The RESULTS tables: per library effect ran / asked, visible, top-1 and right (top-1 or
+    group) among the visible with the 95 % Clopper-Pearson interval, magnitude within 30 % (max
+    error), what the invisible cases got; per out-of-library effect the same with `unattributed`."""
+    asked = dict(plan)
+    out = ["| effect | ran / asked | visible | top-1 (visible) | right: top-1 or group (visible, 95 % CI) | "
+           "magnitude within 30 % (max error) | invisible cases -> |", "|---|---|---|---|---|---|---|"]
+    tot = Counter()
+    for k in LIBRARY:
+        sel = [r for r in rows if r["kind"] == k]
+        if not sel:
+            continue
+        vis = [r for r in sel if visible(r)]
+        top1 = sum(r["verdict"] == k for r in vis)
+        right = [r for r in vis if correct(r)]
+        m = [e for r in right for e in [mag_error(r)] if e is not None]
+        inv = Counter(r["verdict"] for r in sel if not visible(r))
+        out.append(f"| {k} | {len(sel)} / {asked.get(k, '-')} | {len(vis)} | {top1} | {len(right)} "
+                   f"({_ci(len(right), len(vis))}) | "
+                   + (f"{sum(e <= 0.3 for e in m)}/{len(m)} ({max(m):.0%})" if m else "-")
+                   + " | " + (", ".join(f"{n} {v}" for v, n in inv.items()) or "-") + " |")
+        tot.update(ran=len(sel), asked=asked.get(k, 0), vis=len(vis), top1=top1, right=len(right),
+                   mag=sum(e <= 0.3 for e in m), nmag=len(m), allright=sum(map(correct, sel)))
+    if tot:
+        out.append(f"| **all** | {tot['ran']} / {tot['asked']} | {tot['vis']} | {tot['top1']} | **{tot['right']}** "
+                   f"({_ci(tot['right'], tot['vis'])}) | **{tot['mag']}/{tot['nmag']}** | "
+                   f"{tot['allright']} of {tot['ran']} right incl. invisible |")
+    out += ["", "| effect | ran / asked | visible (oracle >= 30) | visible -> unattributed | visible -> other | "
+            "invisible -> |", "|---|---|---|---|---|---|"]
+    for k in OUT_OF_LIBRARY:
+        sel = [r for r in rows if r["kind"] == k]
+        if not sel:
+            continue
+        vis = [r for r in sel if visible(r)]
+        ok = [r for r in vis if correct(r)]
+        other = Counter(r["verdict"] for r in vis if not correct(r))
+        inv = Counter(r["verdict"] for r in sel if not visible(r))
+        out.append(f"| {k} | {len(sel)} / {asked.get(k, '-')} | {len(vis)} | {len(ok)} | "
+                   + (", ".join(f"{n} {v}" for v, n in other.items()) or "-") + " | "
+                   + (", ".join(f"{n} {v}" for v, n in inv.items()) or "-") + " |")
+    vis = [r for r in rows if r["kind"] in OUT_OF_LIBRARY and visible(r)]
+    if vis:
+        k = sum(map(correct, vis))
+        out.append(f"| **all** | {sum(r['kind'] in OUT_OF_LIBRARY for r in rows)} | {len(vis)} | **{k}** "
+                   f"({k / len(vis):.0%}, 95 % CI {_ci(k, len(vis))}) | | |")
+    return "\n".join(out)
+
+
 def summary(rows: list[dict]) -> str:
     out = []
     clean = [r for r in rows if r["kind"] == "clean"]
@@ -250,6 +303,8 @@ def main(argv=None) -> int:
               f"{r['n_modes']:2d} modes {r['magnitude']:+.3g} -> {r['verdict']:17s} "
               f"{'ok ' if correct(r) else 'BAD'} {r.get('cpu_diagnose', 0):.0f}s", file=sys.stderr, flush=True)
     print(summary(rows))
+    print()
+    print(tables(rows, PLANS["effects"] if not a.only else plan))
     return 0
 
 
