@@ -265,6 +265,8 @@ def main(argv=None) -> int:
                     help="generator of the wave data (default: the independent Legendre SAFE)")
     ap.add_argument("--with-waves", action="store_true",
                     help="only the cases of the plan whose data hold waves (re-running them with --waves)")
+    ap.add_argument("--specimens", default=None, help="only these specimens (comma-separated), e.g. wood,aluminium")
+    ap.add_argument("--data", default=None, help="only these data kinds (comma-separated: modal, waves, combined)")
     a = ap.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     progress.set_quiet(True)          # this bench prints its own progress line per case
@@ -284,8 +286,15 @@ def main(argv=None) -> int:
                 r = json.loads(line)
                 done[(r["seed"], r["kind"])] = r
     jobs = sorted(((i, 1 + i, kind) for kind, count in plan for i in range(count)), key=lambda j: (j[0], j[2]))
-    if a.with_waves:
-        jobs = [j for j in jobs if recipe(j[1], j[2])["data"] != "modal"]
+    keep = {"with_waves": a.with_waves, "specimen": a.specimens and a.specimens.split(","),
+            "data": a.data and a.data.split(",")}
+    if any(keep.values()):
+        def wanted(job) -> bool:
+            rc = recipe(job[1], job[2])
+            return ((not keep["with_waves"] or rc["data"] != "modal")
+                    and (not keep["specimen"] or rc["specimen"] in keep["specimen"])
+                    and (not keep["data"] or rc["data"] in keep["data"]))
+        jobs = [j for j in jobs if wanted(j)]
     rows = []
     todo = [j for j in jobs if (j[1], j[2]) not in done]
     for n_done, (_, seed, kind) in enumerate(jobs):
