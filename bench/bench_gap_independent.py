@@ -267,6 +267,9 @@ def main(argv=None) -> int:
                     help="only the cases of the plan whose data hold waves (re-running them with --waves)")
     ap.add_argument("--specimens", default=None, help="only these specimens (comma-separated), e.g. wood,aluminium")
     ap.add_argument("--data", default=None, help="only these data kinds (comma-separated: modal, waves, combined)")
+    ap.add_argument("--redo", default=None,
+                    help="KIND:SEED,... re-run these cases on the current code, replacing their rows in --out "
+                         "(not while another run writes --out)")
     a = ap.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     progress.set_quiet(True)          # this bench prints its own progress line per case
@@ -285,6 +288,20 @@ def main(argv=None) -> int:
             if line.strip():
                 r = json.loads(line)
                 done[(r["seed"], r["kind"])] = r
+    if a.redo:
+        for item in a.redo.split(","):
+            kind, _, seed = item.partition(":")
+            if kind not in KINDS or not seed.isdigit():
+                ap.error(f"--redo {item!r}: expected KIND:SEED with KIND one of {KINDS}")
+            old = done.get((int(seed), kind), {})
+            r = run_case(int(seed), kind, old.get("wave_generator") or a.waves)
+            r["redone"] = True
+            print(f"redo {kind} seed {seed}: {old.get('verdict')} {old.get('confusable')} -> {r['verdict']} "
+                  f"{r['confusable']}", file=sys.stderr, flush=True)
+            done[(int(seed), kind)] = r
+        tmp = out.with_suffix(".tmp")
+        tmp.write_text("".join(json.dumps(r) + "\n" for r in done.values()))
+        tmp.replace(out)
     jobs = sorted(((i, 1 + i, kind) for kind, count in plan for i in range(count)), key=lambda j: (j[0], j[2]))
     keep = {"with_waves": a.with_waves, "specimen": a.specimens and a.specimens.split(","),
             "data": a.data and a.data.split(",")}
