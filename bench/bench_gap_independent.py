@@ -3,8 +3,11 @@
 Run (one nice process; resumes from --out):
   OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_gap_independent.py [--plan calibration|effects|all]
       [--only KIND=N,...] [--out bench/gap_independent_cases.jsonl] [--summary-only]
+      [--waves legendre|safe] [--with-waves]
 
-Each case: the features from the Ritz plate / SAFE at a higher order, diagnosed as a lab would
+Each case: the features from the Ritz plate and, for wave data, the independent Legendre SAFE
+(``--waves legendre``, the default since session 24; ``safe``: engine.safe at a higher order,
+the generator of session 23's rows, which carry no ``wave_generator``), diagnosed as a lab would
 (``labid.workflows.diagnosis.run_diagnosis``: modal only -> E1, E2, G12 (E, G); with waves ->
 all six constants with a 30 % prior). For an effect case the oracle is the chi^2 that the
 noise-free data leave after labid identify's fit of the constants alone (same parameters,
@@ -29,7 +32,7 @@ from scipy import stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bench.blind_independent import KINDS, LIBRARY, OUT_OF_LIBRARY, draw  # noqa: E402
+from bench.blind_independent import KINDS, LIBRARY, OUT_OF_LIBRARY, WAVE_GENERATORS, draw, recipe  # noqa: E402
 from labid.base import progress  # noqa: E402
 from labid.workflows.diagnosis import run_diagnosis  # noqa: E402
 from labid.workflows.identification import estimation  # noqa: E402
@@ -66,13 +69,20 @@ def oracle(case) -> float:
         return float("nan")
 
 
-def run_case(seed: int, kind: str) -> dict:
+def generator_of(r: dict) -> str:
+    """Who made a row's wave data: 'legendre', 'safe' (session 23's rows carry no field) or '-'."""
+    if r["data"] == "modal":
+        return "-"
+    return r.get("wave_generator") or "safe"
+
+
+def run_case(seed: int, kind: str, waves: str = "legendre") -> dict:
     t0 = time.process_time()
-    case = draw(seed, kind)
+    case = draw(seed, kind, wave_generator=waves)
     t1 = time.process_time()
     row = {"seed": seed, "kind": kind, "specimen": case.specimen, "data": case.data, "n_modes": case.n_modes,
            "noise": case.noise, "magnitude": case.magnitude, "params": case.params, "prior": case.prior,
-           "cpu_generate": t1 - t0}
+           "wave_generator": case.detail["wave_generator"], "cpu_generate": t1 - t0}
     try:
         res = run_diagnosis(case.features, names=case.params, prior=case.prior)
     except Exception as exc:  # noqa: BLE001 - recorded as a failed case
@@ -131,6 +141,59 @@ def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     return lo, hi
 
 
+def _ci(k: int, n: int) -> str:
+    lo, hi = clopper_pearson(k, n)
+    return f"{lo:.0%}-{hi:.0%}" if n else "-"
+
+
+def tables(rows: list[dict], plan: list[tuple[str, int]]) -> str:
+    """The RESULTS tables: per library effect ran / asked, visible, top-1 and right (top-1 or
+    group) among the visible with the 95 % Clopper-Pearson interval, magnitude within 30 % (max
+    error), what the invisible cases got; per out-of-library effect the same with `unattributed`."""
+    asked = dict(plan)
+    out = ["| effect | ran / asked | visible | top-1 (visible) | right: top-1 or group (visible, 95 % CI) | "
+           "magnitude within 30 % (max error) | invisible cases -> |", "|---|---|---|---|---|---|---|"]
+    tot = Counter()
+    for k in LIBRARY:
+        sel = [r for r in rows if r["kind"] == k]
+        if not sel:
+            continue
+        vis = [r for r in sel if visible(r)]
+        top1 = sum(r["verdict"] == k for r in vis)
+        right = [r for r in vis if correct(r)]
+        m = [e for r in right for e in [mag_error(r)] if e is not None]
+        inv = Counter(r["verdict"] for r in sel if not visible(r))
+        out.append(f"| {k} | {len(sel)} / {asked.get(k, '-')} | {len(vis)} | {top1} | {len(right)} "
+                   f"({_ci(len(right), len(vis))}) | "
+                   + (f"{sum(e <= 0.3 for e in m)}/{len(m)} ({max(m):.0%})" if m else "-")
+                   + " | " + (", ".join(f"{n} {v}" for v, n in inv.items()) or "-") + " |")
+        tot.update(ran=len(sel), asked=asked.get(k, 0), vis=len(vis), top1=top1, right=len(right),
+                   mag=sum(e <= 0.3 for e in m), nmag=len(m), allright=sum(map(correct, sel)))
+    if tot:
+        out.append(f"| **all** | {tot['ran']} / {tot['asked']} | {tot['vis']} | {tot['top1']} | **{tot['right']}** "
+                   f"({_ci(tot['right'], tot['vis'])}) | **{tot['mag']}/{tot['nmag']}** | "
+                   f"{tot['allright']} of {tot['ran']} right incl. invisible |")
+    out += ["", "| effect | ran / asked | visible (oracle >= 30) | visible -> unattributed | visible -> other | "
+            "invisible -> |", "|---|---|---|---|---|---|"]
+    for k in OUT_OF_LIBRARY:
+        sel = [r for r in rows if r["kind"] == k]
+        if not sel:
+            continue
+        vis = [r for r in sel if visible(r)]
+        ok = [r for r in vis if correct(r)]
+        other = Counter(r["verdict"] for r in vis if not correct(r))
+        inv = Counter(r["verdict"] for r in sel if not visible(r))
+        out.append(f"| {k} | {len(sel)} / {asked.get(k, '-')} | {len(vis)} | {len(ok)} | "
+                   + (", ".join(f"{n} {v}" for v, n in other.items()) or "-") + " | "
+                   + (", ".join(f"{n} {v}" for v, n in inv.items()) or "-") + " |")
+    vis = [r for r in rows if r["kind"] in OUT_OF_LIBRARY and visible(r)]
+    if vis:
+        k = sum(map(correct, vis))
+        out.append(f"| **all** | {sum(r['kind'] in OUT_OF_LIBRARY for r in rows)} | {len(vis)} | **{k}** "
+                   f"({k / len(vis):.0%}, 95 % CI {_ci(k, len(vis))}) | | |")
+    return "\n".join(out)
+
+
 def summary(rows: list[dict]) -> str:
     out = []
     clean = [r for r in rows if r["kind"] == "clean"]
@@ -139,10 +202,10 @@ def summary(rows: list[dict]) -> str:
         lo, hi = clopper_pearson(len(fa), len(clean))
         out.append(f"- clean: false alarms {len(fa)} of {len(clean)} = {len(fa) / len(clean):.1%} "
                    f"(95 % CI {lo:.1%}-{hi:.1%}); verdicts {dict(Counter(r['verdict'] for r in clean))}")
-        for key in ("specimen", "data"):
+        for key in ("specimen", "data", "waves by"):
             parts = defaultdict(list)
             for r in clean:
-                parts[r[key]].append(r["verdict"] != "none")
+                parts[generator_of(r) if key == "waves by" else r[key]].append(r["verdict"] != "none")
             out.append(f"  - by {key}: " + ", ".join(f"{k} {sum(v)}/{len(v)}" for k, v in sorted(parts.items())))
         for lo_n, hi_n in ((10, 20), (21, 30), (31, 40)):
             sel = [r for r in clean if lo_n <= r["n_modes"] <= hi_n]
@@ -198,6 +261,15 @@ def main(argv=None) -> int:
     ap.add_argument("--only", default=None, help="KIND=N,... instead of the plan")
     ap.add_argument("--out", default="bench/gap_independent_cases.jsonl")
     ap.add_argument("--summary-only", action="store_true")
+    ap.add_argument("--waves", default="legendre", choices=WAVE_GENERATORS,
+                    help="generator of the wave data (default: the independent Legendre SAFE)")
+    ap.add_argument("--with-waves", action="store_true",
+                    help="only the cases of the plan whose data hold waves (re-running them with --waves)")
+    ap.add_argument("--specimens", default=None, help="only these specimens (comma-separated), e.g. wood,aluminium")
+    ap.add_argument("--data", default=None, help="only these data kinds (comma-separated: modal, waves, combined)")
+    ap.add_argument("--redo", default=None,
+                    help="KIND:SEED,... re-run these cases on the current code, replacing their rows in --out "
+                         "(not while another run writes --out)")
     a = ap.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     progress.set_quiet(True)          # this bench prints its own progress line per case
@@ -216,7 +288,30 @@ def main(argv=None) -> int:
             if line.strip():
                 r = json.loads(line)
                 done[(r["seed"], r["kind"])] = r
+    if a.redo:
+        for item in a.redo.split(","):
+            kind, _, seed = item.partition(":")
+            if kind not in KINDS or not seed.isdigit():
+                ap.error(f"--redo {item!r}: expected KIND:SEED with KIND one of {KINDS}")
+            old = done.get((int(seed), kind), {})
+            r = run_case(int(seed), kind, old.get("wave_generator") or a.waves)
+            r["redone"] = True
+            print(f"redo {kind} seed {seed}: {old.get('verdict')} {old.get('confusable')} -> {r['verdict']} "
+                  f"{r['confusable']}", file=sys.stderr, flush=True)
+            done[(int(seed), kind)] = r
+        tmp = out.with_suffix(".tmp")
+        tmp.write_text("".join(json.dumps(r) + "\n" for r in done.values()))
+        tmp.replace(out)
     jobs = sorted(((i, 1 + i, kind) for kind, count in plan for i in range(count)), key=lambda j: (j[0], j[2]))
+    keep = {"with_waves": a.with_waves, "specimen": a.specimens and a.specimens.split(","),
+            "data": a.data and a.data.split(",")}
+    if any(keep.values()):
+        def wanted(job) -> bool:
+            rc = recipe(job[1], job[2])
+            return ((not keep["with_waves"] or rc["data"] != "modal")
+                    and (not keep["specimen"] or rc["specimen"] in keep["specimen"])
+                    and (not keep["data"] or rc["data"] in keep["data"]))
+        jobs = [j for j in jobs if wanted(j)]
     rows = []
     todo = [j for j in jobs if (j[1], j[2]) not in done]
     for n_done, (_, seed, kind) in enumerate(jobs):
@@ -225,7 +320,7 @@ def main(argv=None) -> int:
             continue
         if a.summary_only:
             continue
-        r = run_case(seed, kind)
+        r = run_case(seed, kind, a.waves)
         rows.append(r)
         with out.open("a") as fh:
             fh.write(json.dumps(r) + "\n")
@@ -234,6 +329,8 @@ def main(argv=None) -> int:
               f"{r['n_modes']:2d} modes {r['magnitude']:+.3g} -> {r['verdict']:17s} "
               f"{'ok ' if correct(r) else 'BAD'} {r.get('cpu_diagnose', 0):.0f}s", file=sys.stderr, flush=True)
     print(summary(rows))
+    print()
+    print(tables(rows, PLANS["effects"] if not a.only else plan))
     return 0
 
 

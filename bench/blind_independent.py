@@ -16,11 +16,14 @@ Who makes the data:
   converged values for the CFRP and aluminium plates, 3e-4 for the wood-like one, i.e. a
   tenth to a third of the smallest noise; bench/bench_ritz.py, bench/RESULTS.md "Issue 28");
   the suspension modes that springs lift are dropped, as a lab does not list them;
-* group velocities: engine.safe at its default order + 3 (the diagnoser: default). No SAFE
-  independent of labid's was in the repository when this was written (engineer h24 writes
-  one in bench/independent/); its ``order`` makes it a different discretisation of the same
-  3D cross-section model, converged to ~1e-8 either way. The time-of-flight effects are
-  their definition: t = (d + delta) / c_g + dt, c_obs = d / t.
+* group velocities: :mod:`bench.independent.legendre_safe` (``wave_generator="legendre"``, the
+  default since session 24: hierarchical Legendre p-elements, one per ply, the real roots k of
+  the quadratic eigenproblem at each frequency; no code shared with engine.safe; the plies
+  read here by :func:`legendre_plies`, the 3D constants a table leaves out by the specimen
+  format's transverse isotropy). ``wave_generator="safe"``: engine.safe at its default order
+  + 3 (session 23's rows; a different discretisation of the diagnoser's own model). Which one
+  made a case is in its recipe and :attr:`Case.detail`. The time-of-flight effects are their
+  definition: t = (d + delta) / c_g + dt, c_obs = d / t.
 
 Conditions (``KINDS``): ``clean``; library effects (``LIBRARY``, the engine's names, sizes of
 issue 28); out-of-library effects (``OUT_OF_LIBRARY``): a soft patch (impact damage), a
@@ -40,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.independent.legendre_safe import LegendrePlate, layers_of
 from bench.independent.ritz_plate import RitzPlate, plies_from_table
 from engine.safe import default_discretisation, group_velocity
 from labid.inputs.specimen import specimen_from_dict
@@ -94,6 +98,10 @@ SPECIMENS = {
 }
 ACCEL_MASS_KG = 0.002
 SAFE_EXTRA_ORDER = 3
+WAVE_GENERATORS = ("legendre", "safe")
+#: Legendre element order per ply: c_g within 1e-7 of order + 2 over each specimen's band
+#: (tests/unit/bench/test_legendre_safe.py), 5e3 times below the smallest noise (0.05 %)
+LEGENDRE_ORDER = {"cfrp": 4, "wood": 10, "aluminium": 8}
 
 
 @dataclass(frozen=True)
@@ -133,10 +141,13 @@ def _data_choice(kind: str, rng) -> str:
 
 def recipe(seed: int, kind: str, specimen: str | None = None, data: str | None = None,
            n_modes: int | None = None, noise: float | None = None, magnitude: float | None = None,
-           wave_sets: tuple | None = None, band: tuple | None = None, fit: tuple | None = None) -> dict:
+           wave_sets: tuple | None = None, band: tuple | None = None, fit: tuple | None = None,
+           wave_generator: str = "legendre") -> dict:
     """Everything random of a case, drawn from ``seed`` (and the forced choices)."""
     if kind not in KINDS:
         raise ValueError(f"kind {kind!r}: expected one of {KINDS}")
+    if wave_generator not in WAVE_GENERATORS:
+        raise ValueError(f"wave_generator {wave_generator!r}: expected one of {WAVE_GENERATORS}")
     rng = np.random.default_rng(np.random.SeedSequence([int(seed), 28]))
     spec = specimen or str(rng.choice(list(SPECIMENS)))
     if (kind in ANGLE_EFFECTS and spec == "aluminium") or (kind == "ply_angle_error" and spec == "wood"):
@@ -180,6 +191,8 @@ def recipe(seed: int, kind: str, specimen: str | None = None, data: str | None =
     if band is not None:
         extra["band"] = list(band)
     noise_seed = int(rng.integers(2 ** 31))
+    if data != "modal":
+        extra["wave_generator"] = wave_generator      # (modal recipes, and their cache keys, unchanged)
     return {"seed": int(seed), "kind": kind, "specimen": spec, "truth": truth, "data": data, "n_modes": n,
             "noise": noise, "magnitude": mag, "extra": extra, "noise_seed": noise_seed, "params": list(params),
             "prior": prior}
@@ -228,24 +241,77 @@ def ritz_for(r: dict, table: dict, order: int) -> RitzPlate:
     return RitzPlate(plies, L, W, order=order, masses=masses, springs=springs, **kw)
 
 
+def legendre_plies(table: dict, truth: dict, angle_offset: float = 0.0, top_offset: float = 0.0) -> list[tuple]:
+    """(constants E1..G23 and density, angle deg, thickness m) per ply, bottom first, for
+    :func:`bench.independent.legendre_safe.layers_of`: the table read by the Ritz plate's own
+    reader; isotropic E, G give E1 = E2 = E3 = E, G12 = G13 = G23 = G, nu = E / 2G - 1; an
+    orthotropic table without E3, nu13, nu23 is transversely isotropic (E3 = E2, nu13 = nu12,
+    nu23 = E2 / 2 G23 - 1), as the specimen format documents."""
+    plies, _, _ = plies_from_table(table, truth, angle_offset=angle_offset, top_offset=top_offset)
+    rows = []
+    for p in plies:
+        c = {k: float(v) for k, v in p.constants.items()}
+        if "E" in c:
+            E = c["E"]
+            G = c["G"] if "G" in c else E / (2.0 * (1.0 + c["nu"]))
+            nu = E / (2.0 * G) - 1.0
+            d = dict(E1=E, E2=E, E3=E, nu12=nu, nu13=nu, nu23=nu, G12=G, G13=G, G23=G)
+        else:
+            d = {k: c[k] for k in ("E1", "E2", "nu12", "G12", "G13", "G23")}
+            d["E3"] = c.get("E3", c["E2"])
+            d["nu13"] = c.get("nu13", c["nu12"])
+            d["nu23"] = c.get("nu23", c["E2"] / (2.0 * c["G23"]) - 1.0)
+        d["density"] = float(p.density)
+        rows.append((d, float(p.angle_deg), float(p.thickness)))
+    return rows
+
+
+def legendre_group_velocity(plies: list[tuple], mode: str, direction_deg: float, f_hz, order: int) -> np.ndarray:
+    """Group velocity (m/s) of A0 or S0 along ``direction_deg`` at ``f_hz`` from the independent
+    Legendre model: at each frequency below the first cut-off it has exactly three propagating
+    roots, S0 < SH0 < A0 by wavenumber (phase velocities c_S0 > c_SH0 > c_A0); more or fewer
+    roots stop the bench rather than guess a label."""
+    if mode not in ("A0", "S0"):
+        raise ValueError(f"mode {mode!r}: the Legendre generator gives A0 and S0")
+    plate = LegendrePlate(layers_of(plies, direction_deg), order)
+    out = []
+    for f in np.atleast_1d(np.asarray(f_hz, float)):
+        roots = plate.roots(float(f))
+        if len(roots) != 3:
+            raise ValueError(f"{len(roots)} propagating roots at {f:g} Hz along {direction_deg:g} deg: "
+                             "expected 3 (A0, SH0, S0 below the first cut-off)")
+        out.append(roots[-1][1] if mode == "A0" else roots[0][1])
+    return np.array(out)
+
+
 def _waves(r: dict, table: dict) -> list[tuple[str, float, np.ndarray, np.ndarray]]:
     """(mode, direction, frequencies, true group velocities as the lab measures them) per set."""
     _, sets, band, path = SPECIMENS[r["specimen"]]
     sets = r["extra"].get("wave_sets", sets)
     band = r["extra"].get("band", band)
     kind, mag = r["kind"], r["magnitude"]
-    tab = copy.deepcopy(table)
-    tab["materials"][tab["layup"]["material"]].update(r["truth"])
-    if kind in ANGLE_EFFECTS:
+    gen = r["extra"].get("wave_generator", "safe")
+    off = mag if kind == "misalignment" else 0.0
+    top = mag if kind == "ply_angle_error" else 0.0
+    if gen == "legendre":
+        plies = legendre_plies(table, r["truth"], angle_offset=off, top_offset=top)
+
+        def cg_of(mode, direction, f):
+            return legendre_group_velocity(plies, mode, direction, f, LEGENDRE_ORDER[r["specimen"]])
+    else:
+        tab = copy.deepcopy(table)
+        tab["materials"][tab["layup"]["material"]].update(r["truth"])
         ang = tab["layup"]["angles_deg"]
-        tab["layup"]["angles_deg"] = [a + (mag if kind == "misalignment" or i == len(ang) - 1 else 0.0)
-                                      for i, a in enumerate(ang)]
-    lam = specimen_from_dict(tab).laminate
-    order = default_discretisation(lam, band[1])[0] + SAFE_EXTRA_ORDER
+        tab["layup"]["angles_deg"] = [a + off + (top if i == len(ang) - 1 else 0.0) for i, a in enumerate(ang)]
+        lam = specimen_from_dict(tab).laminate
+        order = default_discretisation(lam, band[1])[0] + SAFE_EXTRA_ORDER
+
+        def cg_of(mode, direction, f):
+            return np.asarray(group_velocity(lam, f, mode=mode, direction_deg=direction, order=order), float)
     out = []
     for mode, direction, n in sets:
         f = np.geomspace(band[0], band[1], n) if n > 1 else np.array([float(np.sqrt(band[0] * band[1]))])
-        cg = np.asarray(group_velocity(lam, f, mode=mode, direction_deg=direction, order=order), float)
+        cg = cg_of(mode, direction, f)
         t = (path + (mag if kind == "path_length" else 0.0)) / cg + (mag if kind == "timing_offset" else 0.0)
         out.append((mode, direction, f, path / t))
     return out
@@ -285,7 +351,7 @@ def generated(r: dict) -> dict:
 
 def draw(seed: int, kind: str, **force) -> Case:
     """The case of ``seed`` with condition ``kind`` (``force``: specimen, data, n_modes, noise,
-    magnitude, wave_sets, band, fit = (constants fitted, prior))."""
+    magnitude, wave_sets, band, fit = (constants fitted, prior), wave_generator)."""
     r = recipe(seed, kind, **force)
     g = generated(r)
     table = SPECIMENS[r["specimen"]][0]()
@@ -315,4 +381,5 @@ def draw(seed: int, kind: str, **force) -> Case:
     unit = EFFECTS[kind].unit if kind in EFFECTS else {"glue_mass": "kg", "curvature": "1/m"}.get(kind, "1")
     return Case(int(seed), kind, r["magnitude"], unit, r["specimen"], r["n_modes"] if g["modal"] else 0,
                 r["noise"], r["data"], doc, r["truth"], params, prior, clean,
-                {"extra": r["extra"], "suspension_hz": g.get("suspension_hz"), "ritz_order": g.get("ritz_order")})
+                {"extra": r["extra"], "suspension_hz": g.get("suspension_hz"), "ritz_order": g.get("ritz_order"),
+                 "wave_generator": None if r["data"] == "modal" else r["extra"]["wave_generator"]})
