@@ -16,7 +16,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -27,7 +26,7 @@ import pytest
 from labid.cli import main as cli
 from labid.store import RunStore
 from labid.store.lock import lock_path
-from tests.integration.test_reliability import ROOT, child, one_line, siblings, small_run
+from tests.integration.test_reliability import ROOT, child, one_line, panel_exceptions
 
 LIMITED = """
 import resource, signal, sys
@@ -368,20 +367,9 @@ def test_report_and_export_refuse_garbage_results_in_one_line(analysed, tmp_path
 
 def test_the_panel_refuses_garbage_results_without_quitting(analysed, tmp_path, monkeypatch):
     pytest.importorskip("PySide6")
-    from PySide6.QtWidgets import QApplication
-
-    from labid.gui.main_window import MainWindow
-    app = QApplication.instance() or QApplication(["labid-test"])
     run = copy_run(analysed, tmp_path)
     garbage_results(run, "list_params")
-    hooked = []
-    monkeypatch.setattr(sys, "excepthook", lambda *a: hooked.append(a))
-    w = MainWindow(str(run))
-    app.processEvents()
-    w.close()
-    w.deleteLater()
-    app.processEvents()
-    assert hooked == []
+    assert panel_exceptions(run, monkeypatch) == []
 
 
 def write_csv(path: Path, text: str) -> Path:

@@ -673,13 +673,17 @@ def test_a_refused_acquire_never_deletes_the_new_file_of_the_writer_holding_it(t
 def test_the_panel_opens_a_damaged_run_without_an_uncaught_exception(tmp_path, how, monkeypatch):
     """On main, 16 of 24 such files raised out of MainWindow (MemoryError of 745 GiB among them)."""
     pytest.importorskip("PySide6")
+    from tests.fuzzcases import damaged_copy
+    base = small_run(tmp_path / "base.h5", shots=2)
+    assert panel_exceptions(damaged_copy(base, tmp_path / "d.h5", how, 3), monkeypatch) == []
+
+
+def panel_exceptions(run: Path, monkeypatch) -> list:
+    """The uncaught exceptions (sys.excepthook calls) of opening ``run`` in the panel and closing it."""
     from PySide6.QtWidgets import QApplication
 
     from labid.gui.main_window import MainWindow
-    from tests.fuzzcases import damaged_copy
     app = QApplication.instance() or QApplication(["labid-test"])
-    base = small_run(tmp_path / "base.h5", shots=2)
-    run = damaged_copy(base, tmp_path / "d.h5", how, 3)
     hooked = []
     monkeypatch.setattr(sys, "excepthook", lambda *a: hooked.append(a))
     w = MainWindow(str(run))
@@ -687,7 +691,7 @@ def test_the_panel_opens_a_damaged_run_without_an_uncaught_exception(tmp_path, h
     w.close()
     w.deleteLater()
     app.processEvents()
-    assert hooked == []
+    return hooked
 
 
 def test_a_reader_leaving_the_pipe_loses_no_result(tmp_path, monkeypatch, capsys):
