@@ -101,7 +101,7 @@ def gap_test(r: np.ndarray, J: np.ndarray, w: np.ndarray, alpha: float) -> dict:
     dof = max(n - float(np.trace(J @ np.linalg.pinv(A) @ J.T)), 1.0)
     chi = float(r @ r)
     p = float(chi2_sf(chi, dof))
-    return {"chi2": chi, "dof": dof, "p_value": p, "threshold": float(chi2_isf(alpha, dof)),
+    return {"chi2": chi, "dof": dof, "p_value": p, "threshold": float(chi2_isf(alpha, dof)), "alpha": alpha,
             "significant": bool(p < alpha)}
 
 

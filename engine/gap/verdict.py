@@ -76,8 +76,8 @@ def decide(refitted: Sequence[Candidate], test: Mapping, n: int, accept_alpha: f
     if best is None:
         return "unattributed", None
     p_best = float(chi2_sf(best.chi2, _dof1(test)))
-    alpha = float(chi2_sf(test["threshold"], test["dof"]))       # the gap test's false-alarm rate
-    if p_best > accept_alpha and test["chi2"] - best.chi2 > max(math.log(n), float(chi2_isf(alpha, 1))):
+    lr = float(chi2_isf(test["alpha"], 1))          # the effect's own test at the gap test's rate
+    if p_best > accept_alpha and test["chi2"] - best.chi2 > max(math.log(n), lr):
         return best.name, p_best
     return "unattributed", p_best
 

@@ -116,12 +116,12 @@ def group_table(r: np.ndarray, groups: dict[str, np.ndarray], alpha: float) -> l
     for k, idx in groups.items():
         rr = r[idx]
         c2 = float(rr @ rr)
+        p = float(chi2_sf(c2, len(idx)))
         rows.append(GroupStat(group=k, n=int(len(idx)), chi2=c2,
                               share=c2 / total if total > 0 else 0.0,
                               rms=float(np.sqrt(np.mean(rr ** 2))),
                               mean=float(np.mean(rr)),
-                              p_value=float(chi2_sf(c2, len(idx))),
-                              significant=bool(chi2_sf(c2, len(idx)) < alpha)))
+                              p_value=p, significant=bool(p < alpha)))
     rows.sort(key=lambda d: (-d.chi2 + d.n))
     return rows
 

@@ -142,10 +142,11 @@ def test_an_effect_that_closes_less_than_its_own_1_percent_test_is_not_named():
     from scipy import stats
 
     from engine.gap.verdict import decide
-    test = {"chi2": 47.35, "dof": 27.0, "threshold": float(stats.chi2.isf(0.01, 27.0)), "significant": True}
+    test = {"chi2": 47.35, "dof": 27.0, "threshold": float(stats.chi2.isf(0.01, 27.0)), "alpha": 0.01,
+            "significant": True}
     assert decide([_refitted("thickness", 47.35 - 5.13)], test, 30, 0.001)[0] == "unattributed"
     assert decide([_refitted("thickness", 47.35 - 10.0)], test, 30, 0.001)[0] == "thickness"
-    loose = dict(test, threshold=float(stats.chi2.isf(0.05, 27.0)))      # at 5 %: chi^2_1 quantile 3.84
+    loose = dict(test, threshold=float(stats.chi2.isf(0.05, 27.0)), alpha=0.05)  # at 5 %: chi^2_1 quantile 3.84
     assert decide([_refitted("thickness", 47.35 - 5.13)], loose, 30, 0.001)[0] == "thickness"
 
 
