@@ -266,7 +266,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
     """Arrivals of ``mode``'s direct packet at sensor ``s`` (None: the source record, no
     gate); ``path_m``: the measured path (the bias bound is relative to its travel time);
     ``xtalk``: the bound of the source's crosstalk in this record, on ``W``'s grid
-    (``crosstalk_of``; None: no electrical source)."""
+    (``crosstalk.bound_in``; None: no electrical source)."""
     fs, pre, freqs = d.setup.fs_hz, d.setup.pretrigger, d.freqs
     W = waves.cwt(x, fs, freqs, wl) if W is None else W
     noise = noise_rms(x, pre, fs, freqs, wl)
@@ -360,7 +360,6 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
     valid = arr.valid.copy()
     why = list(arr.reason)
     leak_max = 10 ** (d.settings.leak_db / 20)
-    foreign = []          # per frequency: [(level at the pick, time-shift bound, label)]
     bias_s = np.zeros(nf)
     s_delay = sensor_delay(s, freqs)
     c_src = source_signature(d.setup.source, freqs, wl)[0] + s_delay
@@ -420,7 +419,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
             items.append((rho, rho * max(g, sp) * st * st / (sp * sp), f"{p.mode} {p.path}",
                           (p.mode, round(p.length_m, 3))))
         if xtalk is not None:
-            # the excitation's crosstalk as measured in this record (``crosstalk_of``): its level
+            # the excitation's crosstalk as measured in this record (``crosstalk.bound_in``): its level
             # and slope at the pick bound the shift like a foreign packet's
             kc = min(max(int(round((tc - t[0]) * fs)), 1), A.shape[1] - 2)
             if A[i, kc] > 0:

@@ -484,8 +484,8 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
                 continue
             out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
                                  dict(counts[mode])))
-            how = ("two sensors" if near is not None else "from the trigger time") if setup.force_channel is None \
-                or near is not None else "source to sensor"
+            how = ("two sensors" if near is not None else
+                   "source to sensor" if setup.force_channel is not None else "from the trigger time")
             notes.append(f"{mode} along {direction:g} deg: {int(ok.sum())} independent frequencies "
                          f"{freqs[ok].min() / 1e3:.3g}-{freqs[ok].max() / 1e3:.3g} kHz from {len(shots)} shot(s), "
                          f"{merge.names(which[mode], ok)}, {how}; dropped: {why or 'none'}")
