@@ -20,7 +20,6 @@ from .base.errors import UserError
 from .base.results import Identification
 from .inputs.features import read_features, specimen_of
 from .inputs.specimen import BUILTIN, Specimen
-from .workflows import cluster
 from .workflows.identification import METHODS, minima_summary, parse_assignments
 from .workflows.identification.estimation import default_names
 from .workflows.identification.flow import identify
@@ -96,6 +95,7 @@ def check_prior(prior: float | None, option: str = "--prior") -> float | None:
 def connect_scheduler(address: str | None, n_starts: int):
     """The Dask client of ``labid identify --scheduler`` (None without an address), its
     workers checked before any fitting (``labid.workflows.cluster``)."""
+    from .workflows import cluster  # here: importlib.metadata and Dask only with --scheduler
     return cluster.connect(address, n_starts)
 
 

@@ -16,7 +16,6 @@ from typing import Any, Mapping
 
 from .base.errors import UserError
 from .inference import run_of_features
-from .store import RunStore, decode_result
 
 __all__ = ["KEPT", "HISTORY_GROUP", "kept", "read_result", "store_result", "result_history", "store_for_features"]
 
@@ -29,6 +28,7 @@ def read_result(run: str | Path, name: str, number: int | None = None) -> Any:
     """The result ``/results/<name>`` of ``run`` (its JSON copy preferred; the newest of a kept
     result), or with ``number`` that kept result of this number (``result_history``); None
     if absent."""
+    from .store import RunStore  # here: h5py, not needed when no run is at hand
     with RunStore(run, "r") as st:
         try:
             res = st.read_result(name)
@@ -59,6 +59,7 @@ def store_result(run: str | Path, name: str, data: Mapping, *, replace: bool = F
     A kept result (``KEPT``) is numbered (``stored``: number, time, ``by``) and the one it
     follows is moved to ``/results/history/<name>/<number>``, unless ``replace`` (then it is
     overwritten, and the returned text says so). Other results are overwritten."""
+    from .store import RunStore, decode_result  # here: h5py, not needed when no run is at hand
     data = dict(data)
     with RunStore(run, "a") as st:
         if not kept(name):
@@ -89,6 +90,7 @@ def store_result(run: str | Path, name: str, data: Mapping, *, replace: bool = F
 def result_history(run: str | Path, name: str) -> list[dict]:
     """The kept results ``name`` of ``run``, oldest first: ``{number, time, by, path}`` each
     (the newest at ``/results/<name>``, the others under ``/results/history/<name>``)."""
+    from .store import RunStore, decode_result  # here: h5py, not needed when no run is at hand
     out = []
     with RunStore(run, "r") as st:
         names = st.result_names()

@@ -36,37 +36,67 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from drivers.protocol import AcquisitionError, Record
-from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentError
-from engine import modal
-from mock_hw.rig import Effects
-
-from .base import atomic
-from .base.results import Identification
-from .runresults import HISTORY_GROUP, KEPT, kept, read_result, result_history, store_for_features, store_result
-from .inference import (METHODS, check_prior, connect_scheduler, default_params_for, identification_of,
-                        load_features_file,
-                        minima_summary, parse_names, parse_start, run_diagnosis, run_identification,
-                        run_of_features, select_data, specimen_for_features)
-from .workflows import waveloop
-from .workflows.acquisition import AcquisitionSession, LiveSession
-from .workflows.analysis import (Analysis, AnalysisSettings, analyze_store, modal_features, modal_table,
-                                 store_analysis)
-from .display import (HammerChecks, Scalogram, average_spectrum, hammer_checks, model_frequencies,
-                      model_group_velocity, parameters_of, scalogram)
 from .base.errors import UserError
-from .workflows.damping import damping_summary, family_of
-from .workflows import plan as planning
-from .inputs.features import features_text, specimen_of
-from .inputs import calibration as calib
-from .io import exporters, importers
-from .inputs.rig import Rig, load_rig
-from .inputs.specimen import Specimen, load_specimen
-from .store import KINDS, RunStore, WriterLock
+
+if TYPE_CHECKING:  # for annotations and type checkers; at run time each is imported where it is used
+    from engine import modal
+    from mock_hw.rig import Effects
+    from .base.results import Identification
+    from .display import (HammerChecks, Scalogram, average_spectrum, hammer_checks, model_frequencies,
+                          model_group_velocity, parameters_of, scalogram)
+    from .inference import (METHODS, check_prior, connect_scheduler, default_params_for, identification_of,
+                            load_features_file, minima_summary, parse_names, parse_start, run_diagnosis,
+                            run_identification, run_of_features, select_data, specimen_for_features)
+    from .inputs.rig import Rig
+    from .inputs.specimen import Specimen
+    from .runresults import HISTORY_GROUP, KEPT, kept, read_result, result_history, store_for_features, store_result
+    from .workflows import plan as planning
+    from .workflows.analysis import Analysis, AnalysisSettings
+    from .workflows.damping import family_of
+
+# The facade is lazy (issue 29): every command imports ``labid.services``, so a workflow, the run
+# store, the simulated rig or the display is imported only when a name from it is used, by the
+# functions below (imports inside them) or by ``__getattr__`` for the re-exported names.
+# ``labid diagnose`` then imports the identification and the gap alone (measured, -X importtime:
+# bench/bench_imports.py; eager, every command paid ~0.4-0.6 s CPU for the others).
+_INFERENCE = frozenset({"METHODS", "check_prior", "connect_scheduler", "default_params_for", "identification_of",
+                        "load_features_file", "minima_summary", "parse_names", "parse_start", "run_diagnosis",
+                        "run_identification", "run_of_features", "select_data", "specimen_for_features"})
+_RUNRESULTS = frozenset({"HISTORY_GROUP", "KEPT", "kept", "read_result", "result_history", "store_for_features",
+                         "store_result"})
+_DISPLAY = frozenset({"HammerChecks", "Scalogram", "average_spectrum", "hammer_checks", "model_frequencies",
+                      "model_group_velocity", "parameters_of", "scalogram"})
+
+
+def __getattr__(name: str) -> Any:
+    """The re-exported names, each imported at its first use (PEP 562)."""
+    if name in _INFERENCE:
+        from . import inference as mod
+    elif name in _RUNRESULTS:
+        from . import runresults as mod
+    elif name in _DISPLAY:
+        from . import display as mod
+    elif name == "Identification":
+        from .base import results as mod
+    elif name == "AnalysisSettings":
+        from .workflows import analysis as mod
+    elif name == "family_of":
+        from .workflows import damping as mod
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(mod, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     # the run file
@@ -120,6 +150,8 @@ class RunData:
 def open_run(path: str | Path, max_shots: int = 0) -> RunData:
     """Read configuration, shot counts, at most ``max_shots`` shots per kind and every
     results group (JSON copies preferred). UserError for a file that is not a run."""
+    from .runresults import HISTORY_GROUP
+    from .store import KINDS, RunStore
     with RunStore(path, "r") as st:
         rd = RunData(str(path), st.specimen_toml(), st.rig_toml())
         rd.attrs = st.attributes()
@@ -140,12 +172,14 @@ def open_run(path: str | Path, max_shots: int = 0) -> RunData:
 
 def shots(run: str | Path, kind: str, limit: int | None = None) -> list[Record]:
     """The committed shots of ``kind`` in ``run`` (at most ``limit``), as Records."""
+    from .store import RunStore
     with RunStore(run, "r") as st:
         return st.shots(kind, limit=limit)
 
 
 def save_session(run: str | Path, state: Mapping) -> None:
     """Store the panel's session state (views, settings) in ``run``."""
+    from .store import RunStore
     with RunStore(run, "a") as st:
         st.write_group(SESSION_GROUP, {"state_json": json.dumps(state)})
 
@@ -200,6 +234,7 @@ def discard_empty_run(path: str | Path) -> bool:
     """Delete ``path`` if it is a run file without any shot (created by a session that
     recorded nothing); True if deleted. Unreadable files are left alone, and so is a file
     another writer holds (it may be a session that has just created it)."""
+    from .store import RunStore, WriterLock
     path = Path(path)
     if not path.exists():
         return False
@@ -218,6 +253,7 @@ def discard_empty_run(path: str | Path) -> bool:
 def parse_effects(text: str, key: str = "--effects") -> Effects | None:
     """Unmodelled effects for the simulated rig from 'name=value,..' (SI units; None if
     empty); UserError naming ``key`` on a bad name or value."""
+    from mock_hw.rig import Effects
     text = (text or "").strip()
     if not text:
         return None
@@ -235,6 +271,8 @@ def acquire(run: str | Path, rig: Rig | str | None, specimen: Specimen | str, *,
     """Record ``hits`` hammer hits and ``waves`` wave shots into ``run`` (created or
     appended to; each shot flushed at once). ``on_record(kind, record)`` sees every
     device read (accepted or not). Returns the session summary."""
+    from .store import RunStore
+    from .workflows.acquisition import AcquisitionSession, LiveSession
     with RunStore(run, "a") as store:
         if on_record is None:
             session = AcquisitionSession(rig, specimen, store, backend=backend, effects=effects, seed=seed)
@@ -247,6 +285,7 @@ def acquire(run: str | Path, rig: Rig | str | None, specimen: Specimen | str, *,
 def check_daq(rig: Rig, specimen: Specimen) -> list[str]:
     """Configure every device of ``rig`` on NI-DAQmx as an acquisition would; returns
     their names (UserError naming the device and the cause otherwise)."""
+    from .workflows.acquisition import AcquisitionSession
     session = AcquisitionSession(rig, specimen, None, backend="nidaqmx")
     try:
         for d in rig.devices:
@@ -261,6 +300,7 @@ def read_instruments(env_port: str, hammer_port: str) -> dict:
 
     Returns ``{"env": {...}, "hammer": {...}}`` for the ports given, each
     ``ok`` with its readings or not ``ok`` with a one-line ``message``."""
+    from drivers.serial_instruments import EnvironmentProbe, HammerUnit, InstrumentError
     out = {}
     for key, port, cls in (("env", env_port, EnvironmentProbe), ("hammer", hammer_port, HammerUnit)):
         if not port:
@@ -299,6 +339,9 @@ def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
     ``iterate`` > 0: the wave picks are redone with the identified constants until they
     stop changing, at most that many rounds (``labid.workflows.waveloop``; ``iterate_params``:
     the constants identified in each round, default identify's)."""
+    from .store import RunStore, WriterLock
+    from .workflows import waveloop
+    from .workflows.analysis import AnalysisSettings, analyze_store, store_analysis
     settings = settings or AnalysisSettings()
     out = Path(out) if out is not None else features_path(run)
     with RunStore(run, "r") as st:               # a damaged or missing run: one line first
@@ -322,6 +365,7 @@ def run_reference(run: str | Path, features_file: str | Path) -> str:
 
 def stored_peaks(res: Mapping | None) -> tuple[modal.Peak, ...]:
     """The peaks of a stored ``/results/analysis`` group (``read_result(run, 'analysis')``)."""
+    from engine import modal
     pk = (res or {}).get("peaks")
     if not isinstance(pk, dict) or "frequency_hz" not in pk:
         return ()
@@ -336,6 +380,11 @@ def stored_peaks(res: Mapping | None) -> tuple[modal.Peak, ...]:
 def save_picks(run: str | Path, peaks: Sequence[modal.Peak]) -> dict:
     """Replace the run's modal features (features file and stored peaks) by ``peaks``;
     returns the features. ValueError if the run has not been analysed."""
+    from .base import atomic
+    from .inputs.features import features_text, specimen_of
+    from .store import RunStore
+    from .workflows.analysis import modal_table
+    from .workflows.damping import damping_summary
     with RunStore(run, "r") as st:
         try:
             res = st.read_group("analysis")
@@ -372,6 +421,7 @@ def save_picks(run: str | Path, peaks: Sequence[modal.Peak]) -> dict:
 
 def spectra_of_run(run: str | Path) -> modal.Spectra | None:
     """Spectra of the run's hammer shots, as the analysis computes them (for editing picks)."""
+    from .workflows.analysis import AnalysisSettings, modal_features
     recs = shots(run, "hammer")
     _, spec, _ = modal_features(recs, AnalysisSettings())
     return spec
@@ -380,6 +430,7 @@ def spectra_of_run(run: str | Path) -> modal.Spectra | None:
 def stored_settings(analysis: Mapping | None) -> AnalysisSettings:
     """The modal settings a run was analysed with (its stored ``/results/analysis``; defaults
     for what is not stored)."""
+    from .workflows.analysis import AnalysisSettings
     s = (analysis or {}).get("settings") or {}
     kw: dict[str, Any] = {}
     for k in ("modal_fmax_hz", "modal_fmin_hz", "exp_tau_s", "force_window_s", "indicator"):
@@ -392,11 +443,13 @@ def stored_settings(analysis: Mapping | None) -> AnalysisSettings:
 
 def analysed_spectra(hammer: Sequence[Record], analysis: Mapping | None) -> modal.Spectra | None:
     """The spectra (H1 with a force) of hammer records as the run's stored analysis computed them."""
+    from .workflows.analysis import modal_features
     return modal_features(hammer, stored_settings(analysis), [])[1]
 
 
 def spectrum_indicator(spec: modal.Spectra) -> np.ndarray:
     """The summed normalised spectrum the picks are made on (``engine.modal.indicator``)."""
+    from engine import modal
     return modal.indicator(spec)
 
 
@@ -404,6 +457,7 @@ def toggle_peak(peaks: Sequence[modal.Peak], spec: modal.Spectra, f_hz: float,
                 tol_hz: float | None = None) -> tuple[tuple[modal.Peak, ...], str]:
     """Remove the pick within ``tol_hz`` (default 2 bins) of ``f_hz``, else fit one there.
     Returns (new peaks, 'removed' or 'added'); ValueError if no peak can be fitted."""
+    from engine import modal
     tol = 2 * spec.df if tol_hz is None else tol_hz
     if any(abs(p.frequency_hz - f_hz) <= tol for p in peaks):
         return modal.remove_peak(peaks, f_hz, tol), "removed"
@@ -422,6 +476,9 @@ def plan_test(spec: Specimen | str, rig: Rig | str | None = None, compare: Seque
     rig) and ``compare`` rigs; ``options``: the command's raw option values
     (``labid.workflows.plan_inputs.parse_options``). The result has ``to_dict()`` (the
     ``--json`` document), ``text()``, ``write_rig(path)`` and ``save_figure(path)``."""
+    from .inputs.rig import Rig, load_rig
+    from .inputs.specimen import Specimen, load_specimen
+    from .workflows import plan as planning
     spec = spec if isinstance(spec, Specimen) else load_specimen(spec)
     rigs = [r if isinstance(r, Rig) else load_rig(r) for r in ([rig] if rig is not None else []) + list(compare)]
     for r in rigs:
@@ -437,6 +494,7 @@ def import_records(files: Sequence[str | Path], rig: Rig | str, specimen: Specim
                    map_text: str | None = None, **options) -> dict:
     """Recordings of other systems into the run ``out`` (``labid import``; options and rules:
     ``labid.io.importers.import_records``). Returns its summary dict."""
+    from .io import importers
     return importers.import_records(files, rig, specimen, out, map_text, **options).to_dict()
 
 
@@ -444,12 +502,14 @@ def export_run(run: str | Path, *, uff: str | Path | None = None, csv_dir: str |
                binary: bool = True) -> dict:
     """Write a run's FRFs, time data and picked modes as UFF (58, 55, 15) and its features,
     constants and diagnosis as CSV tables (``labid export``; ``labid.io.exporters``)."""
+    from .io import exporters
     return exporters.export_run(run, uff=uff, csv_dir=csv_dir, binary=binary, spectra=analysed_spectra)
 
 
 def write_result_tables(result: Mapping, what: str, csv_dir: str | Path) -> list[str]:
     """CSV tables of one result: ``what`` 'identification' (constants.csv) or 'diagnosis'
     (diagnosis_*.csv); returns the paths written (``labid identify/diagnose --csv``)."""
+    from .io import exporters
     return exporters.result_tables(result, what, csv_dir)
 
 
@@ -457,6 +517,8 @@ def calibration_status(rig: Rig | str | None) -> dict:
     """The calibration a rig would be used with (its sheet; TEDS is read at acquisition
     only): ``{sheet, entries: [{channel, serial, sensitivity, ..., due_date, source}],
     overdue: [one line each], notes}``, for the panel. UserError on a bad sheet."""
+    from .inputs import calibration as calib
+    from .inputs.rig import Rig, load_rig
     r = rig if isinstance(rig, Rig) else load_rig(rig)
     return calib.status(calib.calibrate(r)[1])
 
@@ -466,6 +528,8 @@ def run_calibration(run: str | Path) -> dict:
     (``/config/calibration_csv``), per channel the entry of its last shot (``{serial,
     sensitivity, calibration_date, due_date, source}``), and one line per channel that was
     recorded past its calibration's due date."""
+    from .inputs import calibration as calib
+    from .store import KINDS, RunStore
     with RunStore(run, "r") as st:
         sheet = st.config_text("calibration_csv")
         metas = [m for k in KINDS for m in st.metas(k)]
@@ -475,5 +539,6 @@ def run_calibration(run: str | Path) -> dict:
 def warn_calibration(status: Mapping | None, prefix: str = "labid", write: Callable[[str], Any] | None = None) -> list[str]:
     """Write each overdue calibration of a ``calibration_status`` once per process (the
     session: the panel calls it when a rig is loaded, the CLI on each command)."""
+    from .inputs import calibration as calib
     lines = list((status or {}).get("overdue") or [])
     return calib.warn_lines(lines, (status or {}).get("sheet"), prefix=prefix, write=write)
