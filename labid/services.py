@@ -3,7 +3,10 @@
 The single facade every front-end imports (the architecture rule), in sections (run file,
 acquisition, analysis, identification and diagnosis, import/export); each function is a thin
 call into its workflow module. Identification and diagnosis are written in
-``labid.inference`` and re-exported here.
+``labid.inference``, the stored results in ``labid.runresults``, the picks' editing in
+``labid.picks`` and the display in ``labid.display``, re-exported here. The facade is lazy: a
+module is imported when a name from it is first used (``__getattr__``, and imports inside the
+functions), so each command imports only what it runs.
 
 Front-ends (``labid.gui``, ``labid.cli``, ``labid.report``)
 call these functions; they never open a ``RunStore`` or call ``engine``
@@ -38,13 +41,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
-import numpy as np
-
 from drivers.protocol import AcquisitionError, Record
 from .base.errors import UserError
 
 if TYPE_CHECKING:  # for annotations and type checkers; at run time each is imported where it is used
-    from engine import modal
     from mock_hw.rig import Effects
     from .base.results import Identification
     from .display import (HammerChecks, Scalogram, average_spectrum, hammer_checks, model_frequencies,
@@ -54,6 +54,8 @@ if TYPE_CHECKING:  # for annotations and type checkers; at run time each is impo
                             run_identification, run_of_features, select_data, specimen_for_features)
     from .inputs.rig import Rig
     from .inputs.specimen import Specimen
+    from .picks import (analysed_spectra, features_path, save_picks, spectra_of_run, spectrum_indicator,
+                        stored_peaks, stored_settings, toggle_peak)
     from .runresults import HISTORY_GROUP, KEPT, kept, read_result, result_history, store_for_features, store_result
     from .workflows import plan as planning
     from .workflows.analysis import Analysis, AnalysisSettings
@@ -69,6 +71,8 @@ _INFERENCE = frozenset({"METHODS", "check_prior", "connect_scheduler", "default_
                         "run_identification", "run_of_features", "select_data", "specimen_for_features"})
 _RUNRESULTS = frozenset({"HISTORY_GROUP", "KEPT", "kept", "read_result", "result_history", "store_for_features",
                          "store_result"})
+_PICKS = frozenset({"analysed_spectra", "features_path", "save_picks", "spectra_of_run", "spectrum_indicator",
+                    "stored_peaks", "stored_settings", "toggle_peak"})
 _DISPLAY = frozenset({"HammerChecks", "Scalogram", "average_spectrum", "hammer_checks", "model_frequencies",
                       "model_group_velocity", "parameters_of", "scalogram"})
 
@@ -79,6 +83,8 @@ def __getattr__(name: str) -> Any:
         from . import inference as mod
     elif name in _RUNRESULTS:
         from . import runresults as mod
+    elif name in _PICKS:
+        from . import picks as mod
     elif name in _DISPLAY:
         from . import display as mod
     elif name == "Identification":
@@ -319,13 +325,7 @@ def read_instruments(env_port: str, hammer_port: str) -> dict:
     return out
 
 
-# ============================================================== analysis
-def features_path(run: str | Path) -> Path:
-    """Where the features of ``run`` are written by default: ``RUN.features.json`` beside it."""
-    r = Path(run)
-    return r.with_name(r.stem + ".features.json")
-
-
+# ============================================================== analysis (the picks' editing: labid.picks)
 def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
                  out: str | Path | None = None, temperature_c: float | None = None,
                  iterate: int = 0, iterate_params: Sequence[str] | None = None) -> Analysis:
@@ -341,6 +341,7 @@ def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
     the constants identified in each round, default identify's)."""
     from .store import RunStore, WriterLock
     from .workflows import waveloop
+    from .picks import features_path
     from .workflows.analysis import AnalysisSettings, analyze_store, store_analysis
     settings = settings or AnalysisSettings()
     out = Path(out) if out is not None else features_path(run)
@@ -361,107 +362,6 @@ def run_analysis(run: str | Path, settings: AnalysisSettings | None = None, *,
 def run_reference(run: str | Path, features_file: str | Path) -> str:
     """The run file as the features file refers to it: relative to its directory."""
     return os.path.relpath(Path(run).resolve(), Path(features_file).resolve().parent)
-
-
-def stored_peaks(res: Mapping | None) -> tuple[modal.Peak, ...]:
-    """The peaks of a stored ``/results/analysis`` group (``read_result(run, 'analysis')``)."""
-    from engine import modal
-    pk = (res or {}).get("peaks")
-    if not isinstance(pk, dict) or "frequency_hz" not in pk:
-        return ()
-    n = len(np.atleast_1d(pk["frequency_hz"]))
-    col = {k: np.atleast_1d(np.asarray(pk[k], float)) for k in pk}
-    return tuple(modal.Peak(float(col["frequency_hz"][i]), float(col["damping_ratio"][i]),
-                            float(col["sigma_hz"][i]), float(col["snr_db"][i]), float(col["confidence"][i]),
-                            (), bool(col["manual"][i]))
-                 for i in range(n))
-
-
-def save_picks(run: str | Path, peaks: Sequence[modal.Peak]) -> dict:
-    """Replace the run's modal features (features file and stored peaks) by ``peaks``;
-    returns the features. ValueError if the run has not been analysed."""
-    from .base import atomic
-    from .inputs.features import features_text, specimen_of
-    from .store import RunStore
-    from .workflows.analysis import modal_table
-    from .workflows.damping import damping_summary
-    with RunStore(run, "r") as st:
-        try:
-            res = st.read_group("analysis")
-        except KeyError:
-            raise ValueError("the run has not been analysed yet") from None
-    doc = json.loads(res["features"]["json"])
-    ms = (doc.get("modal") or {}).get("mode_shapes")
-    modal_sec = modal_table(peaks, ms["points"] if ms else None)
-    out = features_path(run)
-    if modal_sec is None:
-        doc.pop("modal", None)
-        doc.pop("damping", None)
-    else:
-        doc["modal"] = modal_sec
-        try:  # the loss factors follow the edited picks (labels need the specimen)
-            spec = specimen_of(doc, out.parent, str(out))
-        except UserError:
-            spec = None
-        doc["damping"] = damping_summary(modal_sec, spec)
-    notes = doc.setdefault("analysis", {}).setdefault("notes", [])
-    notes.append(f"modal picks edited by hand in the panel ({len(peaks)} peaks)")
-    text = features_text(doc, str(out))
-    atomic.write_text(out, text)
-    res["features"] = {"json": text}
-    if peaks:
-        res["peaks"] = {k: np.array([getattr(p, k) for p in peaks], float)
-                        for k in ("frequency_hz", "damping_ratio", "sigma_hz", "snr_db", "confidence", "manual")}
-    else:
-        res.pop("peaks", None)
-    with RunStore(run, "a") as st:
-        st.write_group("analysis", res)
-    return doc
-
-
-def spectra_of_run(run: str | Path) -> modal.Spectra | None:
-    """Spectra of the run's hammer shots, as the analysis computes them (for editing picks)."""
-    from .workflows.analysis import AnalysisSettings, modal_features
-    recs = shots(run, "hammer")
-    _, spec, _ = modal_features(recs, AnalysisSettings())
-    return spec
-
-
-def stored_settings(analysis: Mapping | None) -> AnalysisSettings:
-    """The modal settings a run was analysed with (its stored ``/results/analysis``; defaults
-    for what is not stored)."""
-    from .workflows.analysis import AnalysisSettings
-    s = (analysis or {}).get("settings") or {}
-    kw: dict[str, Any] = {}
-    for k in ("modal_fmax_hz", "modal_fmin_hz", "exp_tau_s", "force_window_s", "indicator"):
-        v = s.get(k)
-        if v is None or v == "none":
-            continue
-        kw[k] = str(v) if k == "indicator" else float(v)
-    return AnalysisSettings(**kw)
-
-
-def analysed_spectra(hammer: Sequence[Record], analysis: Mapping | None) -> modal.Spectra | None:
-    """The spectra (H1 with a force) of hammer records as the run's stored analysis computed them."""
-    from .workflows.analysis import modal_features
-    return modal_features(hammer, stored_settings(analysis), [])[1]
-
-
-def spectrum_indicator(spec: modal.Spectra) -> np.ndarray:
-    """The summed normalised spectrum the picks are made on (``engine.modal.indicator``)."""
-    from engine import modal
-    return modal.indicator(spec)
-
-
-def toggle_peak(peaks: Sequence[modal.Peak], spec: modal.Spectra, f_hz: float,
-                tol_hz: float | None = None) -> tuple[tuple[modal.Peak, ...], str]:
-    """Remove the pick within ``tol_hz`` (default 2 bins) of ``f_hz``, else fit one there.
-    Returns (new peaks, 'removed' or 'added'); ValueError if no peak can be fitted."""
-    from engine import modal
-    tol = 2 * spec.df if tol_hz is None else tol_hz
-    if any(abs(p.frequency_hz - f_hz) <= tol for p in peaks):
-        return modal.remove_peak(peaks, f_hz, tol), "removed"
-    return modal.add_peak(peaks, spec, f_hz), "added"
 
 
 # ============================================================== identification and diagnosis
@@ -503,6 +403,7 @@ def export_run(run: str | Path, *, uff: str | Path | None = None, csv_dir: str |
     """Write a run's FRFs, time data and picked modes as UFF (58, 55, 15) and its features,
     constants and diagnosis as CSV tables (``labid export``; ``labid.io.exporters``)."""
     from .io import exporters
+    from .picks import analysed_spectra
     return exporters.export_run(run, uff=uff, csv_dir=csv_dir, binary=binary, spectra=analysed_spectra)
 
 
