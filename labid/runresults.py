@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .base.errors import UserError
-from .inference import run_of_features
 
 __all__ = ["KEPT", "HISTORY_GROUP", "kept", "read_result", "store_result", "result_history", "store_for_features"]
 
@@ -117,6 +116,7 @@ def store_for_features(features_file: str | Path, name: str, result: Mapping, *,
     report find it (:func:`store_result`: the older one kept unless ``replace``). Returns a
     one-line note for the user (where it went, or why not: the result itself is never lost
     to it), None when the features came from no run."""
+    from .inference import run_of_features  # here: reading a run's results needs no identification
     run = run_of_features(features_file)
     if run is None:
         return None
