@@ -10,7 +10,6 @@ with the flexural mode's evanescent near field (``spatial_near``) where asked. U
 from __future__ import annotations
 
 import numpy as np
-from scipy import special
 
 from .branches import cheb_branches, dense_table, invert_table, reduce_class
 from .labels import branch_table
@@ -28,6 +27,7 @@ N_VEC = 64            # nodes for the eigenvector (surface amplitude) series
 # modal transfer functions
 def hankel(nu: int, z: np.ndarray) -> np.ndarray:
     """H_nu^(1)(z) for real z > 0: exact below 25, 8-term asymptotic series above."""
+    from scipy import special  # here: the dispersion curves import no scipy (~0.2 s CPU)
     z = np.asarray(z, float)
     out = np.empty(z.shape, complex)
     small = z < 25.0
@@ -69,6 +69,7 @@ def spatial_near(k: np.ndarray, x: float, source: str, kind: str) -> np.ndarray:
     if source == "line":
         e = np.exp(-k * x)
         return {"w": 1j * e, "u": -e, "du": k * e}[kind]
+    from scipy import special  # here, as in hankel
     kr = k * x
     e = np.exp(-kr)                  # K_n(z) = k_ne(z) exp(-z): no overflow, 0 far away
     if kind == "w":
@@ -173,6 +174,7 @@ def transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_
             puw = lerp(prod[:, col_u]) * s ** ((1 + n_u) / 2)
             pww = lerp(prod[:, col_w]) * s ** (n_u / 2)
             if load == "pin":
+                from scipy import special  # here, as in hankel
                 ring = special.j1(kk * radius_m)
                 puw, pww = puw * ring, pww * ring
             alpha = loss_factor * w[ok] ** 2 / np.abs(D)          # eta w / (2 |c_g|)

@@ -91,7 +91,6 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from scipy.fft import irfft, next_fast_len
 
 from ..laminate import Laminate
 from .branches import dense_table, invert_table
@@ -244,6 +243,7 @@ def transient_response(laminate: Laminate, distance_m: float, force: ForceHistor
     No sensor high-pass: apply the sensor chain's filter to the record. See the module
     docstring for conventions, near field, DC handling, padding and the point-source model.
     """
+    from scipy.fft import irfft, next_fast_len  # here: the dispersion curves import no scipy
     check_common(distance_m, quantity, sensor_length_m, source)
     if not (np.isfinite(loss_factor) and 0.0 <= loss_factor < 1.0):
         raise SafeError(f"loss factor {loss_factor!r}: expected 0 <= eta < 1")
