@@ -91,6 +91,7 @@ def main(argv=None) -> int:
     ap.add_argument("--identify", action="store_true", help="also labid identify on the demo's features")
     ap.add_argument("--before", type=Path, help="a tree to run back to back with this one (A/B)")
     ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--only", help="these cases only (comma-separated tags, e.g. modal3-clean)")
     a = ap.parse_args(argv)
     trees = ([("before", a.before.resolve())] if a.before else []) + [("after", ROOT)]
     rows: dict = {}
@@ -98,6 +99,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as td:
         tmp = Path(td)
         todo = cases(a.demo_features.resolve() if a.demo_features else None, a.identify)
+        if a.only:
+            todo = [c for c in todo if c[0] in a.only.split(",")]
         for _ in range(a.repeat):
             for tag, feats, args, command in todo:
                 for name, tree in trees:
