@@ -21,16 +21,16 @@ kept: a new one moves the older one to ``/results/history/<name>/<n>``, never re
 silently), ``save_session``/``session_state``, ``stored_features``, ``discard_empty_run``.
 Workflows: ``acquire`` (+ ``parse_effects``, ``check_daq``,
 ``read_instruments``), ``run_analysis``, ``save_picks`` (+ ``stored_peaks``,
-``spectra_of_run``, ``toggle_peak``), ``run_identification`` (-> ``Identification``, the
+``spectra_of_run``, ``spectrum_indicator``, ``toggle_peak``: ``labid.picks``),
+``run_identification`` (-> ``Identification``, the
 typed result), ``run_diagnosis``, ``store_for_features`` (a CLI result into the run its
 features came from).
 Import, export, calibration (``labid.io``): ``import_records``, ``export_run``,
 ``write_result_tables``, ``calibration_status`` (a rig's sheet, for the panel),
 ``run_calibration`` (what a run's shots were recorded with, for the report),
 ``warn_calibration`` (overdue calibrations, once per session).
-Display (``labid.display``, re-exported): ``spectrum_indicator``,
-``average_spectrum``, ``scalogram``, ``model_group_velocity``,
-``model_frequencies``, ``parameters_of``.
+Display (``labid.display``, re-exported): ``average_spectrum``, ``scalogram``,
+``model_group_velocity``, ``model_frequencies``, ``parameters_of``.
 """
 from __future__ import annotations
 
