@@ -41,7 +41,8 @@ class SourceModel:
 
     kind: 'pencil' (duration = rise time), 'hammer' (contact time), 'tone_burst' or
     'pzt' (a burst of ``cycles`` at ``frequency_hz`` with ``window``). load: 'normal'
-    (a force along +z) or 'pin' (a piezo disc of ``radius_m``); faces: ((face, sign), ...)
+    (a force along +z), 'pin' (a piezo disc of ``radius_m``) or 'inplane' (a point force along
+    the path: a lead broken on the edge, its directivity not modelled); faces: ((face, sign), ...)
     of the loaded faces (a collocated top/bottom pair driven in phase: S modes only,
     in anti-phase: A modes only). electrical: its excitation may leak into the sensor
     channels at the source time (crosstalk).
@@ -72,7 +73,7 @@ class SourceModel:
             same = self.faces[0][1] == self.faces[1][1]
             # a pin force acts along u: in phase, u adds for S modes; a normal force
             # acts along w: in phase, w adds for A modes
-            sym = same if self.load == "pin" else not same
+            sym = same if self.load in ("pin", "inplane") else not same
             return frozenset({"S"} if sym else {"A"})
         return frozenset({"S", "A"})
 

@@ -193,6 +193,8 @@ def source_model(src) -> SourceModel:
         return SourceModel("tone_burst", electrical=True, **kw)
     if src.kind == "hammer":
         return SourceModel("hammer", duration_s=src.contact_s)
+    if getattr(src, "break_on", "face") == "edge":      # an in-plane force at mid-thickness: S modes
+        return SourceModel("pencil", duration_s=src.rise_s, load="inplane", faces=(("top", 0.5), ("bottom", 0.5)))
     return SourceModel("pencil", duration_s=src.rise_s)
 
 
