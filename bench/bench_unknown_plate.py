@@ -35,6 +35,9 @@ from mock_hw.rig import SimulatedDevice, truth_laminate  # noqa: E402
 HERE = Path(__file__).resolve().parent
 LABELS = ("A0", "SH0", "S0")          # the branches of legendre_safe below the first cut-off
 ORDER = 4
+#: the analysis band of the edge breaks (--wave-band): an in-plane step's S0 strain spectrum is
+#: flat where a face break's A0 falls (the material's default band stops at 200 kHz)
+EDGE_BAND = AnalysisSettings(wave_band_hz=(20e3, 350e3))
 
 
 def independent_transfer(lam, r, f, *, direction_deg=0.0, quantity="strain", sensor_length_m=0.0,
@@ -122,6 +125,8 @@ def main(argv) -> None:
                                "bench/rigs/cfrp_pencil_2dir_s0.toml")
     sweep_far = rig_from_text((HERE / "rigs" / "cfrp_pzt_sweep_2dir_far.toml").read_text(),
                               "bench/rigs/cfrp_pzt_sweep_2dir_far.toml")
+    edge = {d: rig_from_text((HERE / "rigs" / f"cfrp_pencil_edge_{d}.toml").read_text(),
+                             f"bench/rigs/cfrp_pencil_edge_{d}.toml") for d in (0, 90)}
     cases = {
         "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
         "two_dir": lambda sc, m: run_case("1 m CFRP plate (pencil at the centre, MFCs 10 / 25 cm along 0 and 90 deg)", two_dir, large, 3, sc, m),
@@ -132,6 +137,11 @@ def main(argv) -> None:
                                              "along 0 and 90 deg)", two_dir_s0, large, 24, sc, m),
         "sweep_far": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz at (0.35, 0.35), 2 shots each, MFCs "
                                             "20 / 40 cm along 0 / 90 deg)", sweep_far, large, 10, sc, m),
+        # session 25: S0 from leads broken on the plate's edge (an in-plane force), one rig per
+        # direction (the force along the sensors' line); A0 from the face breaks of two_dir_s0
+        "edge": lambda sc, m: [run_case(f"1 m CFRP plate (12 pencil breaks on the edge, force along {d} deg, MFCs "
+                                        f"20 / 40 cm along {d} deg)", edge[d], large, 12, sc, m, EDGE_BAND)
+                              for d in (0, 90)],
     }
     pick = [a for a in argv if a in cases] or list(cases)
     models = [a for a in argv if a in ("simulated", "independent")] or ["simulated"]

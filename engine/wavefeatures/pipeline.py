@@ -414,7 +414,8 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
     fam = setup.source.families
     if fam != frozenset("SA") and fam != frozenset("AS"):
         sensors = [replace(s, families="".join(sorted(set(s.families) & fam))) for s in sensors]
-        notes.append(f"collocated actuator pair: {'S' if 'S' in fam else 'A'} modes only")
+        what = "lead broken on the edge (in-plane force)" if setup.source.load == "inplane" else "collocated actuator pair"
+        notes.append(f"{what}: {'S' if 'S' in fam else 'A'} modes only")
     by_dir: dict[float, list] = {}
     for ws in sensors:
         by_dir.setdefault(round(ws.direction_deg, 6), []).append(ws)

@@ -212,7 +212,11 @@ def predict_packets(lam: Laminate, source: SourceModel, source_xy, sensor_xy, pl
     top = 2.0 * float(f.max()) if not fs_hz else min(2.0 * float(f.max()), 0.45 * fs_hz)
     n = int(np.ceil(duration_s * fs_hz)) if fs_hz else 0
     out: list[Packet] = []
-    for p in waves.ray_paths(source_xy, sensor_xy, *plate_size_m, order=order):
+    paths = waves.ray_paths(source_xy, sensor_xy, *plate_size_m, order=order)
+    direct = paths[0].length_m if paths else 0.0
+    for p in paths:
+        if p.order and abs(p.length_m - direct) <= 1e-6 * direct:
+            continue      # a source on an edge: its image in that edge is the direct ray itself
         direction = 0.0 if iso else _half_turn(round(p.direction_deg, 1) if p.order else p.direction_deg)
         models = {}
         if n >= 16:
