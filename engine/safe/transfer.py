@@ -121,7 +121,8 @@ def mode_data(model, wmax: float, labels, strict: bool = True):
         # (4, r): phi_u, phi_w at the top, then at the bottom (PROBES); their pairwise
         # products (16 series) give every source face / sensor face combination
         probes = (cls.to_phys[[top, top + 2, 0, 2], :] @ red.basis)
-        br = cheb_branches(red, nb, probes=probes, n_max=N_CHEB_MAX, n_vec=N_VEC)
+        br = cheb_branches(red, nb, probes=probes, n_max=N_CHEB_MAX, n_vec=N_VEC, n_rigid=cls.n_rigid,
+                           inplane_rows=(PROBES[("top", "u")], PROBES[("bottom", "u")]))
         for r in rs:
             out.append((r["label"], br, r["j"], r["cutoff"]))
     return out
