@@ -91,3 +91,20 @@ def test_a_bad_break_on_is_one_line_and_exit_2(tmp_path, capsys, value, key):
     code = main(["acquire", "--rig", str(p), "--specimen", "aluminium", "--out", str(tmp_path / "r.h5")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and f"wave_source.{key}" in err[0] and "rig.toml" in err[0]
+
+
+def test_sh0_takes_no_s0_surface_u_along_the_fibres_of_a_balanced_laminate():
+    """The built-in [0/+45/-45]2s CFRP is balanced (A16 = 0): in-plane loads excite SH0 along 0 deg
+    only through the weak coupling that grows with fh. labid's SAFE leaked S0's surface u into
+    SH0 through the degenerate k = 0 node (SH0 / S0 at -25 dB at 20 kHz, session 25); the
+    independent Legendre model gives -143 dB there and the same coupling at 300 kHz."""
+    from labid.inputs.specimen import load_specimen
+    from bench.bench_unknown_plate import independent_transfer
+    lam = load_specimen("cfrp").laminate
+    f = np.array([20e3, 50e3, 300e3])
+    kw = dict(direction_deg=0.0, quantity="strain", load="pin", actuator_radius_m=0.005)
+    ours = safe.mode_transfer(lam, 0.25, f, **kw)
+    ratio = 20 * np.log10(np.abs(ours["SH0"]) / np.abs(ours["S0"]))
+    assert ratio[0] < -80 and ratio[1] < -70
+    ind = independent_transfer(lam, 0.25, f[2:], **kw)
+    assert ratio[2] == pytest.approx(20 * np.log10(abs(ind["SH0"][0]) / abs(ind["S0"][0])), abs=2.0)
