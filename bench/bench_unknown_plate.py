@@ -26,6 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench._machine import machine  # noqa: E402
 from bench.independent.legendre_safe import branches, layers_of, plate_of, transfer  # noqa: E402
 from labid.workflows.acquisition import AcquisitionSession  # noqa: E402
+from labid.workflows import analysis  # noqa: E402
 from labid.workflows.analysis import AnalysisSettings, wave_features  # noqa: E402
 from labid.inputs.rig import read_rig_text, rig_from_text  # noqa: E402
 from labid.inputs.specimen import load_specimen, specimen_from_dict  # noqa: E402
@@ -68,6 +69,23 @@ def records(rig, spec, n, seed=0, model="simulated"):
     return [session._read(dev, d) for _ in range(n)]
 
 
+def per_burst(true_lam):
+    """A stand-in for ``analysis._merge_sweep`` that first prints each burst's S0 points against
+    the true plate (where a sweep's wrong points come from), then merges as before."""
+    merge_sweep = analysis._merge_sweep
+
+    def traced(parts, notes):
+        for f, (feats, *_rest) in parts:
+            for w in (w for w in feats if w["mode"] == "S0"):
+                F, V, S = (np.array(w[k]) for k in ("frequency_hz", "group_velocity_m_s", "sigma_m_s"))
+                ref = reference(true_lam, w["direction_deg"], F)["S0"]
+                print(f"    burst {f / 1e3:.0f} kHz, S0 {w['direction_deg']:g} deg: " + ", ".join(
+                    f"{a / 1e3:.0f} kHz {100 * (v / r - 1):+.2f} % (sigma {100 * e / r:.2f} %)"
+                    for a, v, e, r in zip(F, V, S, ref)))
+        return merge_sweep(parts, notes)
+    return traced
+
+
 def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSettings(), seed=0):
     """One case: records of the true plate (spec's moduli x scale), analysed with spec as nominal."""
     rig = replace(rig, sim=replace(rig.sim, truth_scale=(("*", scale),)))
@@ -75,7 +93,12 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
     recs = records(rig, spec, n, seed, model)
     notes: list[str] = []
     t, c = time.perf_counter(), time.process_time()
-    feats, curves, _, _, info = wave_features(recs, rig, spec, settings, notes)
+    merge_sweep = analysis._merge_sweep
+    analysis._merge_sweep = per_burst(true_lam)
+    try:
+        feats, curves, _, _, info = wave_features(recs, rig, spec, settings, notes)
+    finally:
+        analysis._merge_sweep = merge_sweep
     wall, cpu = time.perf_counter() - t, time.process_time() - c
     off = 1 / scale - 1
     print(f"\n{name}: file {off * 100:+.0f} % vs the plate, {model} records, {n} shots "
