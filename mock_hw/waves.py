@@ -6,7 +6,9 @@ as the simulated 'real' plate has it) and over the ray paths of ``engine.waves.r
 (the direct path and, by image sources, the edge reflections up to
 ``[simulation] reflections``, first order by default), times the source spectrum:
 
-* sources: 'pencil' (lead break: step of rise_s), 'hammer' (half-sine of contact_s),
+* sources: 'pencil' (lead break: step of rise_s; on the top face a normal force, on the
+  plate's edge, ``break_on = "edge"``, an in-plane force at mid-thickness: ``edge_rays``),
+  'hammer' (half-sine of contact_s),
   'tone_burst' (normal point force, windowed sine burst), 'pzt' (a bonded piezo disc
   driven by a burst: ring of radial pin force of the disc's radius on its face, or a
   collocated top/bottom pair driven in phase or in anti-phase);
@@ -40,7 +42,7 @@ from engine import safe
 from engine.waves import ray_paths
 
 __all__ = ["OVERSAMPLE", "source_force", "source_peak", "mechanical", "wave_channels", "sensor_response",
-           "apply_crosstalk", "transfer_model", "model_token"]
+           "apply_crosstalk", "transfer_model", "model_token", "force_direction", "edge_rays"]
 
 OVERSAMPLE = 4
 _MODEL: dict = {"name": "engine.safe", "transfer": None}
@@ -95,7 +97,14 @@ def source_force(key: tuple) -> safe.ForceHistory:
 
 
 def _load(src) -> tuple:
-    """(load, radius, ((face, sign), ...)) of the source for ``mode_transfer``."""
+    """(load, radius, ((face, sign), ...)) of the source for ``mode_transfer``.
+
+    A lead broken on the edge at mid-thickness: an in-plane point force, half on each face.
+    The in-plane displacement of every mode below the first cut-off is linear through the
+    thickness at low fh (membrane + bending), so the mean of the two faces' u is u at
+    mid-thickness: the S modes' factor, the A modes' cancels (symmetric laminate)."""
+    if src.kind == "pencil" and getattr(src, "break_on", "face") == "edge":
+        return "inplane", 0.0, (("top", 0.5), ("bottom", 0.5))
     if src.kind != "pzt":
         return "normal", 0.0, (("top", 1.0),)
     if src.pair:
@@ -146,14 +155,17 @@ def wave_channels(rig, plate_size_m: tuple[float, float], lam, effects, channels
             continue
         ap = effects.sensor_aperture if effects.sensor_aperture > 0 else ws.length_m
         rays = []
-        for p in ray_paths((src.x, src.y), (c.x, c.y), length, width, order=sim.reflections):
+        paths = ray_paths((src.x, src.y), (c.x, c.y), length, width, order=sim.reflections)
+        for p, weight in zip(paths, edge_rays(src, paths, plate_size_m)):
+            if weight == 0.0:
+                continue
             if iso:
                 direction = 0.0
             elif p.order == 0:
                 direction = ws.direction_deg
             else:        # theta and theta + 180 deg carry the same waves; 1 deg steps share models
                 direction = (round(p.direction_deg) + 90.0) % 180.0 - 90.0
-            rays.append((p.length_m + effects.path_length, float(direction)))
+            rays.append((p.length_m + effects.path_length, float(direction), float(weight)))
         strain = _wave_fine(lam, tuple(rays), key, fs, nf - lead, ap, fmax, effects.viscoelastic,
                             effects.timing_offset, _load(src), ws.face, model_token())
         gain = ws.volts_per_strain * c.sensitivity * (src.newton_per_volt if src.kind == "pzt" else 1.0)
@@ -161,6 +173,41 @@ def wave_channels(rig, plate_size_m: tuple[float, float], lam, effects, channels
         sos = sensor_response(ws.highpass_hz, ws.resonance_hz, ws.resonance_q, fsf)
         from scipy import signal  # noqa: PLC0415 - see sensor_response
         out[c.name] = signal.sosfilt(sos, y) if sos is not None else y
+    return out
+
+
+def force_direction(src, plate_size_m: tuple[float, float]) -> float:
+    """In-plane force direction (deg from x) of a lead broken on the edge: ``force_deg``, else
+    the inward normal of the plate edge nearest the source."""
+    if src.force_deg is not None:
+        return float(src.force_deg)
+    length, width = plate_size_m
+    gaps = {0.0: src.x, 180.0: length - src.x, 90.0: src.y, -90.0: width - src.y}
+    return min(gaps, key=gaps.get)
+
+
+def edge_rays(src, paths, plate_size_m: tuple[float, float]) -> list[float]:
+    """Amplitude factor of each ray path: 1 for a face source; for an edge break, the
+    in-plane force's directivity cos(theta) of the S-mode radial field (theta between the
+    force and the ray as it leaves the source: the image ray's direction with its x / y
+    component flipped once per reflection on an x / y edge). The source lies on an edge, so
+    its image in that edge lies on it: that path is the direct ray itself (its factor the
+    direct's, i.e. the direct field doubled: the rig's reflection coefficient 1, a free edge
+    loaded by the force)."""
+    if not (src.kind == "pencil" and getattr(src, "break_on", "face") == "edge"):
+        return [1.0] * len(paths)
+    fd = math.radians(force_direction(src, plate_size_m))
+    length, width = plate_size_m
+    tol = 1e-6 * max(length, width)
+    own = {n for n, gap in (("x=0", src.x), ("x=L", length - src.x), ("y=0", src.y), ("y=W", width - src.y))
+           if abs(gap) <= tol}
+    out = []
+    for p in paths:
+        a = math.radians(p.direction_deg)
+        names = p.name.replace("corner ", "").split(",")
+        fx = sum(n.startswith("x=") and n not in own for n in names)
+        fy = sum(n.startswith("y=") and n not in own for n in names)
+        out.append(math.cos(a) * (-1) ** fx * math.cos(fd) + math.sin(a) * (-1) ** fy * math.sin(fd))
     return out
 
 
@@ -172,7 +219,7 @@ def _isotropic(lam) -> bool:
 def _wave_fine(lam, rays: tuple, force_key: tuple, fs: float, n_fine: int, aperture: float, fmax: float,
                eta: float, delay_s: float, load: tuple, face: str, model: str = "engine.safe") -> np.ndarray:
     """Surface strain per unit source amplitude on the fine grid (OVERSAMPLE * fs), t = 0
-    at the source onset, summed over the rays (length m, direction deg).
+    at the source onset, summed over the rays (length m, direction deg, amplitude factor).
 
     Sum over the SAFE modes of ``engine.safe.mode_transfer`` times the source
     spectrum (half-cosine taper over the top 10 % below fmax, DC dropped), each mode
@@ -189,7 +236,7 @@ def _wave_fine(lam, rays: tuple, force_key: tuple, fs: float, n_fine: int, apert
     taper = np.where(fb <= 0.9 * fmax, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * fmax) / (0.1 * fmax))))
     kind, radius, faces = load
     total = np.zeros(fb.size, complex)
-    for r, direction in rays:
+    for r, direction, weight in rays:
         for src_face, sign in faces:
             transfer = _MODEL["transfer"] or safe.mode_transfer
             H = transfer(lam, r, fb, direction_deg=direction, quantity="strain",
@@ -201,11 +248,11 @@ def _wave_fine(lam, rays: tuple, force_key: tuple, fs: float, n_fine: int, apert
                     if label in cp:
                         fp, vp = cp[label]
                         H[label] = H[label] * np.exp(-eta * (2 * np.pi * fb / np.interp(fb, fp, vp)) * r / 2.0)
-            total += sign * sum(H.values(), np.zeros(fb.size, complex))
+            total += weight * sign * sum(H.values(), np.zeros(fb.size, complex))
     Y = np.zeros(f.shape, complex)
     Y[band] = np.conj(total) * force.spectrum(fb) * taper
     y = irfft(Y, n=OVERSAMPLE * n_fft) * fs * OVERSAMPLE
-    r0, d0 = min(rays)
+    r0, d0, _ = min(rays)
     t_first = max(r0 - aperture / 2.0, 1e-6) / _fastest(lam, d0, fmax)
     y = _causal(y, OVERSAMPLE * fs, t_first)
     shift = int(round(delay_s * OVERSAMPLE * fs))     # delay to the nearest fine sample

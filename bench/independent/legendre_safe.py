@@ -308,8 +308,16 @@ def plate_of(layers: tuple[Layer, ...], order: int = 6) -> LegendrePlate:
 
 def _kernels(k: np.ndarray, r: float, kind: str) -> np.ndarray:
     """Cylindrical spreading of a point source: w-like (k/2) H0(kr); radial u-like
-    (k/2) i H1(kr); 'du': d/dr of the u-like one."""
+    (k/2) i H1(kr); 'du': d/dr of the u-like one. An in-plane point force along the path:
+    its P-like field is the gradient of the scalar one, u_r = (k/2) i H1'(kr) per unit
+    phi_u^2, H1'(z) = H0(z) - H1(z)/z; of it the far field (k/2) i H0(kr) ('ui') and its
+    d/dr, -(k^2/2) i H1(kr) ('dui'): the near-field piece cancels against the SH mode's
+    radial near field in the whole field (not modelled here)."""
     kr = k * r
+    if kind == "ui":
+        return 0.5 * k * 1j * special.hankel1(0, kr)
+    if kind == "dui":
+        return -0.5 * k * k * 1j * special.hankel1(1, kr)
     if kind == "w":
         return 0.5 * k * special.hankel1(0, kr)
     if kind == "u":
@@ -327,9 +335,11 @@ def transfer(plate: LegendrePlate, distance_m: float, f_hz: np.ndarray, *, load:
              sensor_length_m: float = 0.0, n_branches: int = 3) -> dict:
     """{'mode<j>': complex radial surface strain per newton} over ``f_hz`` (physics convention
     exp(i(kr - wt))), j = 0, 1, ... the branches by increasing frequency at given k (A0, SH0,
-    S0 below the first cut-off), from a point source: 'normal' force along +z, or a 'pin'
-    ring of radial traction of ``radius_m`` (a bonded piezo disc), on ``source_face``; strain
-    along the path averaged over ``sensor_length_m``; zero where a branch does not reach."""
+    S0 below the first cut-off), from a point source: 'normal' force along +z, a 'pin'
+    ring of radial traction of ``radius_m`` (a bonded piezo disc), or an 'inplane' point
+    force of 1 N along the path (a lead broken on the plate's edge; the caller applies the
+    cos(theta) of a path at theta from the force), on ``source_face``; strain along the
+    path averaged over ``sensor_length_m``; zero where a branch does not reach."""
     f = np.atleast_1d(np.asarray(f_hz, float))
     out: dict[str, np.ndarray] = {}
     if f.size == 0 or not np.any(f > 0):
@@ -347,11 +357,14 @@ def transfer(plate: LegendrePlate, distance_m: float, f_hz: np.ndarray, *, load:
             D = 2 * w[ok] * cg[ok]
             if load == "pin":
                 p = -1j * p * special.j1(k * radius_m)
+            elif load == "inplane":       # the pin ring's source factor without J1(ka) (its a -> 0 gradient)
+                p = -1j * p
+            ku, kd = ("ui", "dui") if load == "inplane" else ("u", "du")
             if sensor_length_m > 0:
                 L = sensor_length_m
-                sp = (_kernels(k, distance_m + L / 2, "u") - _kernels(k, distance_m - L / 2, "u")) / L
+                sp = (_kernels(k, distance_m + L / 2, ku) - _kernels(k, distance_m - L / 2, ku)) / L
             else:
-                sp = _kernels(k, distance_m, "du")
+                sp = _kernels(k, distance_m, kd)
             H[ok] = 1j * p * sp / D
         out[f"mode{j}"] = H
     return out

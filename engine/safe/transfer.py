@@ -46,7 +46,12 @@ def hankel(nu: int, z: np.ndarray) -> np.ndarray:
 
 
 def spatial(k: np.ndarray, x: float, source: str, kind: str) -> np.ndarray:
-    """Spatial factor replacing exp(ikx): kind 'w' (w-like), 'u' (u-like), 'du' (d/dx of u-like)."""
+    """Spatial factor replacing exp(ikx): kind 'w' (w-like), 'u' (u-like), 'du' (d/dx of u-like);
+    'ui', 'dui': the radial u of an in-plane point force along the path, far-field part
+    (k/2) i H0(kr), and its d/dr (``transfer_from_data``, load 'inplane')."""
+    if kind in ("ui", "dui"):
+        kr = k * x
+        return 0.5 * k * 1j * hankel(0, kr) if kind == "ui" else -0.5 * k * k * 1j * hankel(1, kr)
     if source == "line":
         e = np.exp(1j * k * x)
         return e * (1j * k) if kind == "du" else e
@@ -92,7 +97,7 @@ def check_common(distance_m, quantity, sensor_length_m, source):
 
 #: surface probes of the mode data, in order: (face, component) -> row; products column p * 4 + q
 PROBES = {("top", "u"): 0, ("top", "w"): 1, ("bottom", "u"): 2, ("bottom", "w"): 3}
-LOADS = ("normal", "pin")
+LOADS = ("normal", "pin", "inplane")
 FACES = ("top", "bottom")
 
 
@@ -117,7 +122,8 @@ def mode_data(model, wmax: float, labels, strict: bool = True):
         # (4, r): phi_u, phi_w at the top, then at the bottom (PROBES); their pairwise
         # products (16 series) give every source face / sensor face combination
         probes = (cls.to_phys[[top, top + 2, 0, 2], :] @ red.basis)
-        br = cheb_branches(red, nb, probes=probes, n_max=N_CHEB_MAX, n_vec=N_VEC)
+        br = cheb_branches(red, nb, probes=probes, n_max=N_CHEB_MAX, n_vec=N_VEC, n_rigid=cls.n_rigid,
+                           inplane_rows=(PROBES[("top", "u")], PROBES[("bottom", "u")]))
         for r in rs:
             out.append((r["label"], br, r["j"], r["cutoff"]))
     return out
@@ -136,7 +142,18 @@ def transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_
     radius ``radius_m``, total 1 N: the pin-force model of a bonded piezo disc); the
     source factor is phi_w (normal) or J1(k a) phi_u (pin) at ``source_face``, the
     receiver factor phi_u (u, strain) or i phi_w (w) at ``sensor_face`` (module docstring).
+    'inplane': a point force of 1 N along the path on ``source_face`` (a pencil lead broken
+    on the plate's edge): the gradient of the pin ring's field as its radius a -> 0 gives
+    u_r = phi_u^2 (k/2) i H1'(kr) cos(theta) / D, H1'(z) = H0(z) - H1(z)/z (theta from the
+    force; the caller applies cos(theta)). The near-field piece -H1(z)/z (~1/(kr) of the
+    far field) is left out: in the whole field it cancels, to leading order in 1/(kr)^2,
+    against the transverse (SH) mode's radial near field u_r ~ H1(k_s r)/(k_s r), which
+    the u/w probes of the mode data do not hold; alone it would make a step force's strain
+    grow like 1/f^2 at low frequency. Kept: u_r = phi_u^2 (k/2) i H0(kr) cos(theta) / D
+    (a radial sensor does not read SH0's far field, u_theta). Strain only.
     """
+    if load == "inplane" and quantity != "strain":
+        raise SafeError(f"inplane load: only the strain is modelled, not the {quantity}")
     w = TWO_PI * f
     src = PROBES[(source_face, "w" if load == "normal" else "u")]
     col_u = PROBES[(sensor_face, "u")] * 4 + src
@@ -182,11 +199,13 @@ def transfer_from_data(data, f: np.ndarray, distance_m, quantity, sensor_length_
                 if sensor_length_m > 0:
                     L = sensor_length_m
                     x1, x0 = distance_m + L / 2, distance_m - L / 2
-                    sp = (kernel(kk, x1, source, "u") * np.exp(-alpha * x1)
-                          - kernel(kk, x0, source, "u") * np.exp(-alpha * x0)) / L
+                    ku = "ui" if load == "inplane" else "u"
+                    sp = (kernel(kk, x1, source, ku) * np.exp(-alpha * x1)
+                          - kernel(kk, x0, source, ku) * np.exp(-alpha * x0)) / L
                 else:
-                    sp = (kernel(kk, distance_m, source, "du")
-                          - alpha * kernel(kk, distance_m, source, "u")) * np.exp(-alpha * distance_m)
+                    ku, kd = ("ui", "dui") if load == "inplane" else ("u", "du")
+                    sp = (kernel(kk, distance_m, source, kd)
+                          - alpha * kernel(kk, distance_m, source, ku)) * np.exp(-alpha * distance_m)
                 H[ok] = puw * sp / D
             else:
                 Hw = 1j * pww * kernel(kk, distance_m, source, "w") * np.exp(-alpha * distance_m) / D
@@ -206,5 +225,7 @@ def check_load(load, radius_m, source_face, sensor_face, source, near_field) -> 
     if load == "pin" and not (source == "point" and np.isfinite(radius_m) and radius_m > 0):
         raise SafeError(f"pin load: expected a point source with actuator radius > 0 m, got "
                         f"source={source!r}, radius={radius_m!r}")
+    if load == "inplane" and source != "point":
+        raise SafeError(f"inplane load: expected a point source, got source={source!r}")
     if near_field and (load, source_face) != ("normal", "top"):
         raise SafeError("near_field: only for a normal force on the top face")

@@ -19,7 +19,8 @@ import numpy as np
 
 from .. import waves
 
-__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "off_curve", "scattered", "names"]
+__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "off_curve", "scattered", "odd_one",
+           "names"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
 
@@ -171,6 +172,32 @@ def scattered(f_hz, v, sigma, limit: float = 0.01) -> str:
         return (f"its {f.size} points scatter by {100 * spread:.1f} % about a smooth curve while their sigmas "
                 f"say {100 * own:.2f} %: picks on different packets or ridges")
     return ""
+
+
+def odd_one(f_hz, v, sigma, limit: float = 0.01) -> int | None:
+    """The one point that makes a curve ``scattered`` (its index), or None: leave each point out
+    in turn; the point is the one whose removal leaves at least 4 points that stand together
+    (``scattered`` is '') most tightly (smallest robust scatter: an end point, extrapolated,
+    also lies far off the others' curve) and that lies off the smooth curve through them by
+    more than ``limit`` and 4 x their robust scatter (a pick on another ridge in a burst's 4-6-point
+    curve, which ``off_curve`` cannot judge below 7 points: issue 24, session 24). None when no
+    single point explains the scatter (then the curve is withheld whole)."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    if f.size < 5 or not scattered(f, v, s, limit):
+        return None
+    x = np.log(f / f.max())
+    best, tight = None, np.inf
+    for j in range(f.size):
+        keep = np.arange(f.size) != j
+        if scattered(f[keep], v[keep], s[keep], limit):
+            continue
+        c = np.polynomial.polynomial.polyfit(x[keep], v[keep], 3 if keep.sum() >= 7 else 2)
+        rel = (v - np.polynomial.polynomial.polyval(x, c)) / v
+        spread = 1.4826 * float(np.median(np.abs(rel[keep] - np.median(rel[keep]))))
+        off = abs(rel[j])
+        if off > max(limit, 4.0 * spread) and spread < tight:
+            best, tight = j, spread
+    return best
 
 
 def names(which, mask) -> str:

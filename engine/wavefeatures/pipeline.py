@@ -44,7 +44,7 @@ For each propagation direction of the wave sensors (``measure_waves``):
    below the per-shot noise sigma over sqrt(n)) and the wavelet-bias term of a
    centre-frequency sweep (docs/wavelet-bias.md) in quadrature;
 8. the features keep only points a wavelet resolution apart (each point's own wavelet,
-   ``merge.independent_mask``), less those off the smooth curve through the others.
+   ``merge.independent_mask``), less those off the smooth curve (``merge.off_curve``, ``odd_one``).
 
 Pure: arrays and small frozen dataclasses in, a ``WaveResult`` out (its notes and the
 per-curve ``dropped`` counts included); no files, no run store. Units: s, Hz, m, m/s.
@@ -414,7 +414,8 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
     fam = setup.source.families
     if fam != frozenset("SA") and fam != frozenset("AS"):
         sensors = [replace(s, families="".join(sorted(set(s.families) & fam))) for s in sensors]
-        notes.append(f"collocated actuator pair: {'S' if 'S' in fam else 'A'} modes only")
+        by = "lead broken on the edge" if setup.source.load == "inplane" else "collocated actuator pair"
+        notes.append(f"{by}: {'S' if 'S' in fam else 'A'} modes only")
     by_dir: dict[float, list] = {}
     for ws in sensors:
         by_dir.setdefault(round(ws.direction_deg, 6), []).append(ws)
@@ -475,6 +476,9 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             # dense grid share their errors (the full curve stays in the run file)
             ok = merge.independent_mask(freqs, ok, which[mode])
             bad = merge.off_curve(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok])
+            j = merge.odd_one(freqs[ok][~bad], gv.velocity_m_s[ok][~bad], gv.sigma_m_s[ok][~bad])
+            if j is not None:        # one wrong point of a short curve goes alone
+                bad[np.flatnonzero(~bad)[j]] = True
             if bad.any():
                 counts[mode]["off the smooth curve"] = int(bad.sum())
                 ok[np.flatnonzero(ok)[bad]] = False

@@ -41,7 +41,8 @@ class SourceModel:
 
     kind: 'pencil' (duration = rise time), 'hammer' (contact time), 'tone_burst' or
     'pzt' (a burst of ``cycles`` at ``frequency_hz`` with ``window``). load: 'normal'
-    (a force along +z) or 'pin' (a piezo disc of ``radius_m``); faces: ((face, sign), ...)
+    (a force along +z), 'pin' (a piezo disc of ``radius_m``) or 'inplane' (a point force along
+    the path: a lead broken on the edge, its directivity not modelled); faces: ((face, sign), ...)
     of the loaded faces (a collocated top/bottom pair driven in phase: S modes only,
     in anti-phase: A modes only). electrical: its excitation may leak into the sensor
     channels at the source time (crosstalk).
@@ -72,7 +73,7 @@ class SourceModel:
             same = self.faces[0][1] == self.faces[1][1]
             # a pin force acts along u: in phase, u adds for S modes; a normal force
             # acts along w: in phase, w adds for A modes
-            sym = same if self.load == "pin" else not same
+            sym = same if self.load in ("pin", "inplane") else not same
             return frozenset({"S"} if sym else {"A"})
         return frozenset({"S", "A"})
 
@@ -211,7 +212,11 @@ def predict_packets(lam: Laminate, source: SourceModel, source_xy, sensor_xy, pl
     top = 2.0 * float(f.max()) if not fs_hz else min(2.0 * float(f.max()), 0.45 * fs_hz)
     n = int(np.ceil(duration_s * fs_hz)) if fs_hz else 0
     out: list[Packet] = []
-    for p in waves.ray_paths(source_xy, sensor_xy, *plate_size_m, order=order):
+    paths = waves.ray_paths(source_xy, sensor_xy, *plate_size_m, order=order)
+    direct = paths[0].length_m if paths else 0.0
+    for p in paths:
+        if p.order and abs(p.length_m - direct) <= 1e-6 * direct:
+            continue      # a source on an edge: its image in that edge is the direct ray itself
         direction = 0.0 if iso else _half_turn(round(p.direction_deg, 1) if p.order else p.direction_deg)
         models = {}
         if n >= 16:

@@ -19,7 +19,7 @@ from ..base.errors import UserError
 from .files import parse_toml, read_text_file
 from .keys import check_keys as _keys   # the one key check (labid.inputs.keys)
 from .rigtypes import (BUILTIN, ROLES, KINDS, COUPLINGS, FILTERS, DEFAULT_MAX_RATE_HZ, FACES, SOURCE_KINDS,
-                       WINDOWS, PAIRS, AntiAlias, DeviceSpec, WaveSensor, Burst, Source, SimSettings, Rig)
+                       WINDOWS, PAIRS, BREAK_ON, AntiAlias, DeviceSpec, WaveSensor, Burst, Source, SimSettings, Rig)
 
 #: a channel name: a table of the run file is named after it (HDF5: no '/', not '.'), and so
 #: are CSV columns and UFF records; the run file's own tables take the names in RESERVED_NAMES
@@ -233,7 +233,7 @@ def _device(name: str, tab: Any, src: str, wave_source: Source | None) -> tuple[
 
 
 _SOURCE_KEYS = {
-    "pencil": {"rise_s", "force_n"},
+    "pencil": {"rise_s", "force_n", "break_on", "force_deg"},
     "hammer": {"contact_s", "force_n"},
     "tone_burst": {"frequency_hz", "cycles", "window", "force_n"},
     "pzt": {"diameter_m", "face", "pair", "excitation", "newton_per_volt"},
@@ -283,8 +283,16 @@ def _source(tab: Mapping, key: str, src: str, kinds: tuple[str, ...], default_ki
                       face=_str(tab, "face", where, src, choices=FACES, default="top"), pair=pair,
                       newton_per_volt=_num(tab, "newton_per_volt", where, src, default=1.0, lo=0.0,
                                            lo_open=True, what="a pin force per volt in N/V"))
+    edge = {}
+    if kind == "pencil":
+        edge = dict(break_on=_str(tab, "break_on", where, src, choices=BREAK_ON, default="face"),
+                    force_deg=_num(tab, "force_deg", where, src, default=None, lo=-360.0, hi=360.0,
+                                   what="an in-plane force direction in deg from x"))
+        if edge["force_deg"] is not None and edge["break_on"] != "edge":
+            raise _err(src, where + "force_deg", "is only read with break_on = \"edge\" (a lead broken on the "
+                       "plate's edge)")
     return Source(
-        **common,
+        **common, **edge,
         force_n=_num(tab, "force_n", where, src, default=1.0, lo=0.0, lo_open=True, what="a force in N"),
         contact_s=_num(tab, "contact_s", where, src, default=2.0e-4, lo=0.0, lo_open=True,
                        what="a contact duration in s"),

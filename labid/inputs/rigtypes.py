@@ -58,6 +58,7 @@ FACES = ("top", "bottom")
 SOURCE_KINDS = ("pencil", "hammer", "tone_burst", "pzt")
 WINDOWS = ("hann", "hamming", "rect")
 PAIRS = ("symmetric", "antisymmetric")
+BREAK_ON = ("face", "edge")
 
 
 @dataclass(frozen=True)
@@ -114,6 +115,10 @@ class Source:
     top/bottom pair driven 'symmetric' (in phase: S modes only) or 'antisymmetric').
     channel: the channel recording the source (force or excitation voltage), if any.
     newton_per_volt: the piezo's pin force per volt (simulator).
+    break_on: a pencil lead broken on the top 'face' (a normal force: A0 strong, S0 ~40 dB
+    under it on a thin laminate) or on the plate's 'edge' at mid-thickness (an in-plane force
+    along ``force_deg``, deg from x, default the inward normal of the nearest edge: S modes,
+    S0 strongest along the force; docs/waves.md).
     """
 
     kind: str
@@ -128,6 +133,8 @@ class Source:
     face: str = "top"
     pair: str | None = None
     newton_per_volt: float = 1.0
+    break_on: str = "face"
+    force_deg: float | None = None
 
 
 @dataclass(frozen=True)

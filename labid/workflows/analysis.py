@@ -193,6 +193,8 @@ def source_model(src) -> SourceModel:
         return SourceModel("tone_burst", electrical=True, **kw)
     if src.kind == "hammer":
         return SourceModel("hammer", duration_s=src.contact_s)
+    if getattr(src, "break_on", "face") == "edge":      # an in-plane force at mid-thickness: S modes
+        return SourceModel("pencil", duration_s=src.rise_s, load="inplane", faces=(("top", 0.5), ("bottom", 0.5)))
     return SourceModel("pencil", duration_s=src.rise_s)
 
 
@@ -305,11 +307,14 @@ def _wave_features_one(records: Sequence[Record], rig: Rig, specimen: Specimen,
     force = _source_channel(rig, r0)
     source = source_model(rig.wave_source) if rig.wave_source is not None else SourceModel()
     far = max(sensors, key=lambda c: rig.wave_sensor(c.name).distance_m) if sensors else None
-    # the far sensor's record from the first possible arrival on: the direct packets
+    # the far sensor's record from the first possible arrival on: the direct packets; triggered
+    # on a wave sensor, the onset lies its travel time before the trigger (issue 24, session 25)
     rec_far = None
     if far is not None:
         c_max = _fastest_bulk(specimen)
-        k0 = pre + int(rig.wave_sensor(far.name).distance_m / c_max * fs)
+        r_trig = rig.wave_sensor(r0.trigger.channel) if r0.trigger is not None else None
+        r_trig = r_trig.distance_m if r_trig is not None else 0.0
+        k0 = pre + int(max(rig.wave_sensor(far.name).distance_m - r_trig, 0.0) / c_max * fs)
         rec_far = r0.scaled(far.name)[min(k0, r0.timing.samples - 16):]
     try:
         band = waves_pipeline.analysis_band(
