@@ -34,7 +34,7 @@ from ..laminate import PhysicsError
 from ..plate import PlateModel, mode_families
 from ..plate.convergence import FINE_FACTOR, ORDER, finer_mesh, mode_corrections
 from ..forward.pairing import MISS, MISS_UNKNOWN, SPURIOUS, visibility
-from .surrogate import RitzSurrogate, global_search
+from .surrogate import RitzSurrogate, global_search, refine
 from .verdict import BOX, POISSON_MAX, RUNAWAY, FitContext, admissibility, bounds, boxed, systematic, verdict
 
 __all__ = ["FitContext", "fit_blocks", "verdict", "admissibility", "bounds", "boxed",
@@ -85,9 +85,9 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     fwd = ctx.modal_forward
     like = fwd is not None and getattr(fwd, "likelihood_pairing", False)
     pair_notes: list[str] = []
-    starts, ranked = [st], []
+    starts, ranked, prepare = [st], [], dict
     if like and global_stage:          # every method: the Lai-Ip update needs a good start as much
-        starts, note, ranked = global_starts(ctx, names, st, fixed)
+        starts, note, ranked, prepare = global_starts(ctx, names, st, fixed)
         pair_notes.append(note)
     def fit_paired(start_: Mapping[str, float], give_up: float | None = None, assignment=None) -> Estimate:
         """A fit from ``start_``, with its own likelihood pairing (re-paired until it stands);
@@ -110,7 +110,7 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     tried: list[Estimate] = []
     for k, s0 in enumerate(starts):
         try:
-            e = fit_paired(s0, give_up)
+            e = fit_paired(prepare(s0), give_up)
         except ValueError:   # a candidate start outside the admissible region: the next one
             if k < len(starts) - 1 or tried:
                 continue
@@ -277,17 +277,18 @@ def _penalised(est: Estimate) -> float:
 
 def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, float],
                   fixed: Mapping[str, float] | None = None
-                  ) -> tuple[list[dict[str, float]], str, list[dict[str, float]]]:
+                  ) -> tuple[list[dict[str, float]], str, list[dict[str, float]], Callable]:
     """Starts for the local fit from the cheap global stage (engine.identify.surrogate):
     candidates over +-50 % (log-uniform) of the constants modal data constrain best (E1,
     E2, G12; isotropic E, G) among ``names``, the others at the start, ranked by their
     penalised pairing cost; the given start first when it ranks as well. Up to
     N_GLOBAL_FITS distinct starts (more than 5 % apart), best first; also every candidate
-    as a start, best first (for :func:`_rival_start`)."""
+    as a start, best first (for :func:`_rival_start`); and ``prepare(candidate)``, the
+    candidate refined on the surrogate (the given start is returned as it is)."""
     fwd = ctx.modal_forward
     best_names = _best_constrained(ctx, names)
     if not best_names:
-        return [dict(start)], "global stage: skipped (no E1, E2, G12 / E, G fitted)", []
+        return [dict(start)], "global stage: skipped (no E1, E2, G12 / E, G fitted)", [], dict
     elastic = ("E", "G") if ctx.isotropic else ("E1", "E2", "nu12", "G12", "G13", "G23")
     full = {k: v for k, v in ctx.nominal.items() if k in elastic}
     full.update({k: v for k, v in {**(fixed or {}), **start}.items() if k in elastic})
@@ -300,7 +301,7 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
         sur = RitzSurrogate(fwd.model, full, best_names, fwd.n_solve, material=ctx.material,
                             solve=fwd.modes_at)   # memoised: the visibility below reuses the start's modes
     except (PhysicsError, ValueError, np.linalg.LinAlgError) as e:
-        return [dict(start)], f"global stage: skipped ({e})", []
+        return [dict(start)], f"global stage: skipped ({e})", [], dict
     vis = None
     if fwd.response_points is not None and len(fwd.response_points):
         modes = fwd.modes_at(full)
@@ -318,8 +319,21 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
     if all(max(abs(math.log(start[n] / o[n])) for n in best_names) > 0.05 for o in out):
         out.append(dict(start))      # the given start last, as a fallback
     ranked = [{n: (p[n] if n in p else start[n]) for n in names} for _, p in cands]
+    box = bounds(ctx)
+
+    def prepare(st: Mapping[str, float]) -> dict[str, float]:
+        if all(st[n] == start[n] for n in names):
+            return dict(st)
+        """A candidate moved to the surrogate's own minimum over every fitted elastic constant
+        (engine.identify.surrogate.refine), so that the FE fit starts near it; refined only
+        when it is fitted (~0.1-0.3 s CPU each). Measured: the demo's modal-only fit from the
+        datasheet start 37 -> 14 default-mesh solves (bench/RESULTS.md, issue 29 session 25)."""
+        r = refine(sur, [n for n in names if n in elastic], {**full, **st}, fwd.observed, fwd.sigma_obs,
+                   visible=vis, correction=fwd.correction, box=box, check=check)
+        return dict(st) if r is None else {n: (r[n] if n in r else st[n]) for n in names}
+
     return out, (f"global stage: {len(cands)} candidates over +-50 % of "
-                 f"{', '.join(best_names)} ranked by pairing cost (best {c0:.3g})"), ranked
+                 f"{', '.join(best_names)} ranked by pairing cost (best {c0:.3g})"), ranked, prepare
 
 
 #: re-pairing rounds of the likelihood pairing (each a refit from the last estimate)
