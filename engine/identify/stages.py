@@ -8,7 +8,8 @@ diagnosis call, on the blocks of ``engine.identify.blocks.feature_blocks``:
    box (:func:`bounds`: moduli within BOX x nominal, Poisson ratios in (0, 1); the
    positive-definite stiffness is checked by the forward models);
 2. with likelihood pairing, a cheap global stage (:func:`global_starts`,
-   ``engine.identify.surrogate``) gives up to N_GLOBAL_FITS starts; each is fitted with
+   ``engine.identify.surrogate``) gives up to N_GLOBAL_FITS starts; each is moved to the
+   surrogate's own minimum over every fitted elastic constant (``refine``), then fitted with
    re-pairing between local fits (:func:`_repair_loop`, oscillation guarded) until one
    is consistent; the most likely is kept;
 3. Birge refit and data-set consistency (``engine.fit.checks``);
