@@ -11,7 +11,8 @@ instead of a sparse solve (0.2-0.4 s): :func:`global_search` ranks a space-filli
 of candidates in a box of +-``BOX_REL`` around the start by their penalised pairing
 cost (:func:`engine.forward.pairing.assign`), so that a local fit from the best one
 starts near the right optimum and with the right pairing, not from a datasheet value
-30 % off.
+30 % off; :func:`refine` then moves a candidate to the surrogate's own minimum over every
+fitted elastic constant (analytic Ritz Jacobian), so that the FE fit starts near it.
 
 Units SI: Pa, Hz.
 """
