@@ -8,7 +8,8 @@ diagnosis call, on the blocks of ``engine.identify.blocks.feature_blocks``:
    box (:func:`bounds`: moduli within BOX x nominal, Poisson ratios in (0, 1); the
    positive-definite stiffness is checked by the forward models);
 2. with likelihood pairing, a cheap global stage (:func:`global_starts`,
-   ``engine.identify.surrogate``) gives up to N_GLOBAL_FITS starts; each is fitted with
+   ``engine.identify.surrogate``) gives up to N_GLOBAL_FITS starts; each is moved to the
+   surrogate's own minimum over every fitted elastic constant (``refine``), then fitted with
    re-pairing between local fits (:func:`_repair_loop`, oscillation guarded) until one
    is consistent; the most likely is kept;
 3. Birge refit and data-set consistency (``engine.fit.checks``);
@@ -34,7 +35,7 @@ from ..laminate import PhysicsError
 from ..plate import PlateModel, mode_families
 from ..plate.convergence import FINE_FACTOR, ORDER, finer_mesh, mode_corrections
 from ..forward.pairing import MISS, MISS_UNKNOWN, SPURIOUS, visibility
-from .surrogate import RitzSurrogate, global_search
+from .surrogate import RitzSurrogate, global_search, refine
 from .verdict import BOX, POISSON_MAX, RUNAWAY, FitContext, admissibility, bounds, boxed, systematic, verdict
 
 __all__ = ["FitContext", "fit_blocks", "verdict", "admissibility", "bounds", "boxed",
@@ -85,9 +86,9 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     fwd = ctx.modal_forward
     like = fwd is not None and getattr(fwd, "likelihood_pairing", False)
     pair_notes: list[str] = []
-    starts, ranked = [st], []
+    starts, ranked, prepare = [st], [], dict
     if like and global_stage:          # every method: the Lai-Ip update needs a good start as much
-        starts, note, ranked = global_starts(ctx, names, st, fixed)
+        starts, note, ranked, prepare = global_starts(ctx, names, st, fixed)
         pair_notes.append(note)
     def fit_paired(start_: Mapping[str, float], give_up: float | None = None, assignment=None) -> Estimate:
         """A fit from ``start_``, with its own likelihood pairing (re-paired until it stands);
@@ -108,7 +109,13 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     n_pts = sum(b.observed.size for b in blocks)
     give_up = GIVE_UP * (n_pts + 3.0 * math.sqrt(2.0 * n_pts)) if method == "lm" and len(starts) > 1 else None
     tried: list[Estimate] = []
+    modal_only = all(b.kind == "modal" for b in blocks)
     for k, s0 in enumerate(starts):
+        # the given start is refined only when the data are modal alone: the surrogate sees the
+        # modes only, and on the demo's combined features it moved the nominal start's G13, G23
+        # (which the waves fix) from a cost of 4.6 to 139 (2 more solves)
+        if modal_only or any(s0[n] != st[n] for n in names):
+            s0 = prepare(s0)
         try:
             e = fit_paired(s0, give_up)
         except ValueError:   # a candidate start outside the admissible region: the next one
@@ -277,17 +284,18 @@ def _penalised(est: Estimate) -> float:
 
 def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, float],
                   fixed: Mapping[str, float] | None = None
-                  ) -> tuple[list[dict[str, float]], str, list[dict[str, float]]]:
+                  ) -> tuple[list[dict[str, float]], str, list[dict[str, float]], Callable]:
     """Starts for the local fit from the cheap global stage (engine.identify.surrogate):
     candidates over +-50 % (log-uniform) of the constants modal data constrain best (E1,
     E2, G12; isotropic E, G) among ``names``, the others at the start, ranked by their
     penalised pairing cost; the given start first when it ranks as well. Up to
     N_GLOBAL_FITS distinct starts (more than 5 % apart), best first; also every candidate
-    as a start, best first (for :func:`_rival_start`)."""
+    as a start, best first (for :func:`_rival_start`); and ``prepare(candidate)``, the
+    candidate refined on the surrogate (the given start too, when it is fitted)."""
     fwd = ctx.modal_forward
     best_names = _best_constrained(ctx, names)
     if not best_names:
-        return [dict(start)], "global stage: skipped (no E1, E2, G12 / E, G fitted)", []
+        return [dict(start)], "global stage: skipped (no E1, E2, G12 / E, G fitted)", [], dict
     elastic = ("E", "G") if ctx.isotropic else ("E1", "E2", "nu12", "G12", "G13", "G23")
     full = {k: v for k, v in ctx.nominal.items() if k in elastic}
     full.update({k: v for k, v in {**(fixed or {}), **start}.items() if k in elastic})
@@ -300,7 +308,7 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
         sur = RitzSurrogate(fwd.model, full, best_names, fwd.n_solve, material=ctx.material,
                             solve=fwd.modes_at)   # memoised: the visibility below reuses the start's modes
     except (PhysicsError, ValueError, np.linalg.LinAlgError) as e:
-        return [dict(start)], f"global stage: skipped ({e})", []
+        return [dict(start)], f"global stage: skipped ({e})", [], dict
     vis = None
     if fwd.response_points is not None and len(fwd.response_points):
         modes = fwd.modes_at(full)
@@ -318,8 +326,19 @@ def global_starts(ctx: FitContext, names: Sequence[str], start: Mapping[str, flo
     if all(max(abs(math.log(start[n] / o[n])) for n in best_names) > 0.05 for o in out):
         out.append(dict(start))      # the given start last, as a fallback
     ranked = [{n: (p[n] if n in p else start[n]) for n in names} for _, p in cands]
+    box = bounds(ctx)
+
+    def prepare(st: Mapping[str, float]) -> dict[str, float]:
+        """A candidate moved to the surrogate's own minimum over every fitted elastic constant
+        (engine.identify.surrogate.refine), so that the FE fit starts near it; refined only
+        when it is fitted (~0.1-0.3 s CPU each). Measured: the demo's modal-only fit from the
+        datasheet start 37 -> 14 default-mesh solves (bench/RESULTS.md, issue 29 session 25)."""
+        r = refine(sur, [n for n in names if n in elastic], {**full, **st}, fwd.observed, fwd.sigma_obs,
+                   visible=vis, correction=fwd.correction, box=box, check=check)
+        return dict(st) if r is None else {n: (r[n] if n in r else st[n]) for n in names}
+
     return out, (f"global stage: {len(cands)} candidates over +-50 % of "
-                 f"{', '.join(best_names)} ranked by pairing cost (best {c0:.3g})"), ranked
+                 f"{', '.join(best_names)} ranked by pairing cost (best {c0:.3g})"), ranked, prepare
 
 
 #: re-pairing rounds of the likelihood pairing (each a refit from the last estimate)

@@ -11,7 +11,8 @@ instead of a sparse solve (0.2-0.4 s): :func:`global_search` ranks a space-filli
 of candidates in a box of +-``BOX_REL`` around the start by their penalised pairing
 cost (:func:`engine.forward.pairing.assign`), so that a local fit from the best one
 starts near the right optimum and with the right pairing, not from a datasheet value
-30 % off.
+30 % off; :func:`refine` then moves a candidate to the surrogate's own minimum over every
+fitted elastic constant (analytic Ritz Jacobian), so that the FE fit starts near it.
 
 Units SI: Pa, Hz.
 """
@@ -22,11 +23,12 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..laminate import PhysicsError
-from ..plate.stiffness import q_vector
+from ..plate.stiffness import q_derivatives, q_vector
 from ..forward.pairing import assign
 from .sobol import sobol
 
-__all__ = ["RitzSurrogate", "global_search", "SPREAD", "BOX_REL", "N_CANDIDATES"]
+__all__ = ["RitzSurrogate", "global_search", "refine", "SPREAD", "BOX_REL", "N_CANDIDATES",
+           "REFINE_PRIOR", "REFINE_ROUNDS"]
 
 #: relative change of each searched constant at which basis modes are solved
 SPREAD = 0.3
@@ -67,8 +69,9 @@ class RitzSurrogate:
         Mr = V.T @ (M @ V)
         w, U = np.linalg.eigh(0.5 * (Mr + Mr.T))
         keep = w > 1e-12 * w.max()
-        T = V @ (U[:, keep] / np.sqrt(w[keep]))        # M-orthonormal basis
-        self.T = T
+        # M-orthonormal basis; not kept (3,125 x ~211 on the demo plate, 5 MB): the surrogate
+        # lives on through the fit for refine(), and keeping it raised identify's peak RSS 14 MiB
+        T = V @ (U[:, keep] / np.sqrt(w[keep]))
         # the projection needs only the DOFs the basis moves: bending modes of a symmetric
         # layup leave the membrane DOFs exactly 0 (K restricted there: ~1/3 of the entries)
         live = np.flatnonzero(np.any(T != 0.0, axis=1))
@@ -89,11 +92,29 @@ class RitzSurrogate:
         coef, *_ = np.linalg.lstsq(A, np.array(mats).reshape(len(mats), -1), rcond=None)
         self.parts = coef.reshape(A.shape[1], T.shape[1], T.shape[1])
 
+    def _mat(self, params: Mapping[str, float]):
+        mats = self.model.laminate.with_params(dict(params), self.material).materials
+        return mats[self.material] if self.material else next(iter(mats.values()))
+
     def _q(self, params: Mapping[str, float]) -> np.ndarray:
-        lam = self.model.laminate.with_params(dict(params), self.material)
-        mats = lam.materials
-        mat = mats[self.material] if self.material else next(iter(mats.values()))
-        return q_vector(mat)
+        return q_vector(self._mat(params))
+
+    def frequencies_jacobian(self, params: Mapping[str, float], names: Sequence[str]
+                             ) -> tuple[np.ndarray, np.ndarray]:
+        """(the ``n_modes`` lowest Ritz frequencies (Hz), their derivatives (Hz per unit of
+        each of ``names``, shape (n_modes, len(names)))): d(lambda)/dq_j = u' K_j u of the
+        Ritz vectors u (K_r is linear in q), chained through ``q_derivatives``."""
+        mat = self._mat(params)
+        q = np.concatenate([[1.0], q_vector(mat) / 1e9])
+        Kr = np.tensordot(q, self.parts, axes=1)
+        lam, U = np.linalg.eigh(0.5 * (Kr + Kr.T))
+        lam, U = lam[:self.n], U[:, :self.n]
+        # u' K_j u for the 6 parts by one batched product (an einsum over the three indices
+        # took 25-45 ms on the demo's 211-vector basis, this 2-4 ms)
+        dlam_dq = ((self.parts[1:] @ U) * U[None]).sum(axis=1).T / 1e9     # (n, 6) per Pa of q
+        dlam = dlam_dq @ q_derivatives(mat, list(names))[:6]
+        f = np.sqrt(np.maximum(lam, 0.0)) / (2.0 * np.pi)
+        return f, dlam / (8.0 * np.pi ** 2 * np.maximum(f, 1e-300))[:, None]
 
     def frequencies_hz(self, params: Mapping[str, float]) -> np.ndarray:
         """The ``n_modes`` lowest elastic Ritz frequencies (Hz) at ``params``."""
@@ -138,3 +159,77 @@ def global_search(surrogate: RitzSurrogate, names: Sequence[str], measured_hz, s
         out.append((a.cost, p))
     out.sort(key=lambda t: t[0])
     return out
+
+
+#: log-std of the prior centred on a candidate that a surrogate refinement stays under (the
+#: firm stage of engine.fit.estimate's continuation: the poorly constrained constants stay put)
+REFINE_PRIOR = 0.3
+#: pairing rounds of a refinement (re-paired at each refined point, refitted while it changes)
+REFINE_ROUNDS = 3
+
+
+def refine(surrogate: RitzSurrogate, names: Sequence[str], start: Mapping[str, float], measured_hz,
+           sigma_hz, *, visible=None, correction=None, tau: float = 0.01, box=None,
+           check=None) -> dict[str, float] | None:
+    """A candidate ``start`` moved to the minimum of the surrogate's paired misfit over
+    ``names`` (log coordinates, prior REFINE_PRIOR on the log-change, bounds ``box`` {name:
+    (low, high)}), re-paired up to REFINE_ROUNDS times; None when it fails (an inadmissible
+    point, ``check`` raising, no pair). Why: from a global-stage candidate the local FE fit of
+    six constants crawled along a curved valley (G12 against nu12 and G13): the demo's modal
+    fit took 15 LM steps (one plate solve each) to go 782 -> 50 in cost; on the surrogate
+    that crawl costs milliseconds per step (bench/RESULTS.md, issue 29 session 25)."""
+    from scipy.optimize import least_squares     # already loaded by engine.forward.pairing
+
+    names = [n for n in names if n in start]
+    f = np.asarray(measured_hz, float)
+    s = np.broadcast_to(np.asarray(sigma_hz, float), f.shape)
+    p0 = np.array([start[n] for n in names], float)
+    lo = np.full(p0.size, -np.inf)
+    hi = np.full(p0.size, np.inf)
+    for i, n in enumerate(names):
+        a, b = (box or {}).get(n, (0.0, np.inf))
+        lo[i] = np.log(a / p0[i]) + 1e-9 if a > 0 else -np.inf
+        hi[i] = np.log(b / p0[i]) - 1e-9 if np.isfinite(b) else np.inf
+    w = 1.0 / REFINE_PRIOR
+
+    def params(x):
+        return {**start, **{n: float(v) for n, v in zip(names, p0 * np.exp(x))}}
+
+    def corr(m):
+        c = np.ones(m)
+        if correction is not None:
+            k = min(m, len(correction))
+            c[:k] = np.asarray(correction)[:k]
+        return c
+
+    x = np.zeros(p0.size)
+    index = None
+    try:
+        for _ in range(REFINE_ROUNDS):
+            fp = surrogate.frequencies_hz(params(x))
+            a = assign(f, s, fp * corr(fp.size), None if visible is None else visible[:fp.size], tau)
+            if index is not None and np.array_equal(a.index, index):
+                break
+            index = a.index
+            ok = index >= 0
+            if not ok.any():
+                return None
+            j = index[ok]
+
+            def res(x_):
+                fp_ = surrogate.frequencies_hz(params(x_))
+                return np.concatenate([(fp_[j] * corr(fp_.size)[j] - f[ok]) / s[ok], w * x_])
+
+            def jac(x_):
+                fp_, d = surrogate.frequencies_jacobian(params(x_), names)
+                rows = d[j] * corr(fp_.size)[j][:, None] / s[ok][:, None] * (p0 * np.exp(x_))[None, :]
+                return np.vstack([rows, w * np.eye(x_.size)])
+
+            x = least_squares(res, np.clip(x, lo, hi), jac=jac, bounds=(lo, hi), method="trf",
+                              x_scale="jac", xtol=1e-8, ftol=1e-8, max_nfev=100).x
+        p = params(x)
+        if check is not None:
+            check(p)
+    except (PhysicsError, ValueError, np.linalg.LinAlgError):
+        return None
+    return p
