@@ -148,7 +148,8 @@ def truth_modes(spec, plan: dict, truth: dict, masses):
 
 
 def peaks(spec, plan: dict, truth: dict, masses, rng) -> tuple[np.ndarray, np.ndarray, int]:
-    """Measured frequencies and sigmas of the plate playing reality (module docstring)."""
+    """Measured frequencies and sigmas of the plate playing reality (module docstring); the
+    mode number (of reality's, from 0) of each peak is left in ``TRUTH['modes']``."""
     L, W = spec.length, spec.width
     S = np.array(plan["sensors"])
     f, shapes_at = truth_modes(spec, plan, truth, masses)
@@ -165,6 +166,7 @@ def peaks(spec, plan: dict, truth: dict, masses, rng) -> tuple[np.ndarray, np.nd
             if seen[i] and seen[j] and abs(f[j] - f[i]) < max(bw[i], bw[j]):
                 seen[i if v[i] < v[j] else j] = False
     keep = np.flatnonzero(seen)
+    TRUTH["modes"] = keep.tolist()
     sig = SIGMA * f[keep] * np.sqrt(1 + (V_REF / v[keep]) ** 2)
     return f[keep] + sig * rng.standard_normal(keep.size), sig, int(keep.size)
 
@@ -183,12 +185,26 @@ def case(spec, plan: dict, k: int, seed: int) -> dict:
     nominal = mat.params()
     est = run(prob, tuple(plan["fitted"]), {n: nominal[n] for n in plan["fitted"]})
     t2 = time.process_time()
+    pairing = pairing_of(est)
     return {"type": "case", "specimen": spec.name, "layout": plan["layout"], "k": k, "n_peaks": n,
             "truth": truth, "masses": masses.tolist(),
             "err": {nm: est.params[nm] / truth[nm] - 1 for nm in plan["fitted"]},
             "std": {nm: float(s / v) for nm, s, v in zip(est.names, est.std, est.values)},
             "consistent": bool(est.fit["consistent"]), "chi2_per_dof": est.fit["chi2_per_dof"],
+            "chi2": est.fit["chi2"], "dof": est.fit["dof"], "p_value": est.fit["p_value"],
+            "set_aside": pairing.get("set_aside", 0), "set_aside_hz": pairing.get("set_aside_hz", []),
+            "unpaired_modes": pairing.get("unpaired_modes", 0), "truth_modes": TRUTH.get("modes"),
+            "paired_modes": pairing.get("paired_modes"), "warnings": [w[:160] for w in est.warnings][:8],
             "cpu_truth": t1 - t0, "cpu_fit": t2 - t1}
+
+
+def pairing_of(est) -> dict:
+    """The set-aside peaks (no predicted mode) and unpaired in-band modes of the fit's pairing
+    (what the verdict's set-aside test judges; recorded so the verdict can be re-applied)."""
+    rows = (est.fit or {}).get("pairing") or []
+    aside = [r["measured_hz"] for r in rows if r["mode_index"] is None]
+    return {"set_aside": len(aside), "set_aside_hz": aside, "paired_modes": [r["mode_index"] for r in rows],
+            "unpaired_modes": len((est.fit or {}).get("unpaired_modes") or [])}
 
 
 def summary(rows: list[dict], plan: dict, current: dict | None = None) -> list[str]:
