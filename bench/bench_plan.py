@@ -207,19 +207,36 @@ def pairing_of(est) -> dict:
             "unpaired_modes": len((est.fit or {}).get("unpaired_modes") or [])}
 
 
+def accepted(r: dict) -> bool:
+    """Today's verdict on a stored case: consistent and not questionable, the set-aside test
+    (engine.identify.verdict.set_aside_test) re-applied to the recorded fit when the case
+    carries its pairing (cases run before that test was added keep their recorded verdict)."""
+    from engine.fit.checks import P_CONSISTENT
+    from engine.identify.verdict import P_QUESTIONABLE, set_aside_test
+    if not r["consistent"] or "set_aside" not in r:
+        return bool(r["consistent"])
+    return min(set_aside_test(r["n_peaks"], r["set_aside"], r["p_value"])) >= max(P_QUESTIONABLE, P_CONSISTENT)
+
+
 def summary(rows: list[dict], plan: dict, current: dict | None = None) -> list[str]:
     """Per constant: predicted (the stored plan's; ``current``: today's code on that layout)
-    against the spread (std, 1.4826 MAD) and the rms of the relative errors."""
+    against the spread (std, 1.4826 MAD) and the rms of the relative errors, over every case
+    and over the cases the verdict accepts (what a lab reports: it does not quote constants
+    from a fit its own verdict rejects)."""
     out = []
+    ok = [accepted(r) for r in rows]
     for nm, pred in (current or plan["predicted"]).items():
         e = np.array([r["err"][nm] for r in rows])
         sd = float(np.std(e, ddof=1))
         mad = float(1.4826 * np.median(np.abs(e - np.median(e))))
         rms = float(np.sqrt(np.mean(e ** 2)))
+        sd_ok = float(np.std(e[ok], ddof=1)) if sum(ok) > 2 else float("nan")
         out.append(f"  {nm:5s} predicted {100 * pred:.3f} %  spread std {100 * sd:.3f} % (ratio {sd / pred:.2f})"
                    f"  MAD-std {100 * mad:.3f} % (ratio {mad / pred:.2f})  mean error {100 * e.mean():+.3f} %"
                    f"  rms {100 * rms:.3f} % (ratio {rms / pred:.2f})"
-                   f"  {'AGREES' if abs(sd / pred - 1) <= 0.25 else 'DISAGREES'} (25 %)")
+                   f"  {'AGREES' if abs(sd / pred - 1) <= 0.25 else 'DISAGREES'} (25 %);"
+                   f"  accepted fits only {100 * sd_ok:.3f} % (ratio {sd_ok / pred:.2f})")
+    out.append(f"  accepted by today's verdict: {sum(ok)} of {len(rows)}")
     cons = sum(r["consistent"] for r in rows)
     out.append(f"  {len(rows)} cases, {cons} consistent; peaks per case {np.median([r['n_peaks'] for r in rows]):.0f} "
                f"(plan: {plan['modes_seen']}); median CPU per case {np.median([r['cpu_truth'] + r['cpu_fit'] for r in rows]):.1f} s")
