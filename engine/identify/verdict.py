@@ -175,8 +175,11 @@ def admissibility(ctx: FitContext, params: Mapping[str, float], rel: float = 0.0
 MAX_UNEXPLAINED = 2
 MAX_UNEXPLAINED_FRACTION = 0.25
 #: the fraction of a listed peak list expected NOT to be the plate's (suspension modes, harmonics,
-#: noise peaks): under a right fit the peaks set aside are these, Binomial(n_peaks, SPURIOUS_RATE)
-SPURIOUS_RATE = 0.02
+#: noise peaks): under a right fit the peaks set aside are these, Binomial(n_peaks, SPURIOUS_RATE).
+#: Measured on bench/bench_identify_real.py's realistic lists (first 40 cases, reference-mesh
+#: peaks with 0-2 random spurious ones): 42 of 1538 peaks injected (2.7 %), 37 set aside by fits
+#: within 3 std of the truth (2.4 %), at most 2 in one list; rounded up
+SPURIOUS_RATE = 0.03
 #: below this p-value of the set-aside test (joint with the chi^2 test) the fit is QUESTIONABLE:
 #: it stays "consistent" but no constant is reported as identified, and the verdict says why first
 P_QUESTIONABLE = 1e-2

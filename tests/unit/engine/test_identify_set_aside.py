@@ -54,7 +54,7 @@ def _fit(freqs):
 
 def test_three_of_twelve_peaks_not_the_plate_s_is_said_first_and_nothing_identified(ritz_peaks):
     """9 Ritz modes + 3 peaks that are not the plate's: the three are set aside. The old rule
-    (more than 2 AND 25 % of 12) let it pass as identified; P(K >= 3 | 12, 2 %) = 0.0015, so
+    (more than 2 AND 25 % of 12) let it pass as identified; P(K >= 3 | 12, 3 %) = 0.0047, so
     the verdict calls it questionable (or inconsistent) and reports no constant identified."""
     f, foreign = ritz_peaks
     out = _fit(np.r_[f, foreign])
