@@ -385,8 +385,9 @@ def _loaded(probs: Sequence[DesignProblem], model, draws, sensors, tap, masses, 
     modes and first-order mass effects (-m phi^2 / 2); the reported stds use these, since the
     mass's effect is not linear from zero: measured on the CFRP plan's layout (3 x 2 g,
     bench/RESULTS.md issue 25 session 25), d ln f / d m at 2 g is 0.69-0.84 x the bare
-    plate's -phi^2 / 2 and, close modes mixing, differs per mode; E1's std from the masses'
-    10 % was predicted 0.33 %, is 0.17 % in 60 simulated identifications and 0.18 % so."""
+    plate's -phi^2 / 2 overall and, close modes mixing, off by more than 30 % on single modes;
+    E1's std from the masses' 10 % was 0.32 % by the bare plate, is 0.16-0.19 % by the loaded
+    one and 0.17 % over 60 simulated identifications."""
     pts = probs[0].mset.points
     xy = np.vstack([pts[list(sensors)], pts[[tap]]])
     loaded = model.with_point_masses([(float(x), float(y), float(m)) for (x, y), m in zip(xy[:-1], masses)])
