@@ -1,7 +1,7 @@
 """Does the std ``labid plan`` predicts agree with the spread of simulated identifications? (issue 25)
 
     OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_plan.py [--cases 200] [--specimens cfrp,wood,aluminium]
-        [--layout recommended|rig] [--out bench/plan_cases.jsonl]
+        [--layout recommended|rig] [--out bench/plan_cases.jsonl] [--held-at-nominal] [--exact-masses]
 
 Per specimen: ``labid plan`` (services.plan_test: the built-in rig as template, 3 accelerometers
 of 2 g, want E1, E2, G12 -- aluminium E, G -- fitted alone (``--fit wanted``), the other
@@ -112,6 +112,13 @@ def predict_layout(spec, plan: dict) -> dict:
 def draw_truth(mat, rng) -> dict:
     names = ("E", "G") if mat.isotropic else ("E1", "E2", "nu12", "G12", "G13", "G23")
     base = mat.params()
+    if TRUTH.get("held_at_nominal") and not mat.isotropic:
+        # a diagnosis (--held-at-nominal): only E1, E2, G12 drawn (the first three deviates), the
+        # held constants at their datasheet values, as the fit holds them; six deviates used
+        z = rng.standard_normal(6)
+        p = {n: base[n] for n in names}
+        p.update({n: base[n] * math.exp(PRIOR * zk) for n, zk in zip(("E1", "E2", "G12"), z)})
+        return p
     while True:
         p = {n: base[n] * math.exp(PRIOR * rng.standard_normal()) for n in names}
         try:
@@ -175,7 +182,7 @@ def case(spec, plan: dict, k: int, seed: int) -> dict:
     rng = np.random.default_rng([seed, k])
     mat = spec.laminate.plies[0].material
     truth = draw_truth(mat, rng)
-    masses = MASS_KG * (1 + MASS_U * rng.standard_normal(len(plan["sensors"])))
+    masses = MASS_KG * (1 + (0.0 if TRUTH.get("exact_masses") else MASS_U) * rng.standard_normal(len(plan["sensors"])))
     t0 = time.process_time()
     fm, sig, n = peaks(spec, plan, truth, masses, rng)
     t1 = time.process_time()
@@ -251,12 +258,16 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=25)
     ap.add_argument("--out", default="bench/plan_cases.jsonl")
     ap.add_argument("--max-modes", type=int, default=60, help="the plan's --max-modes (its fit band)")
+    ap.add_argument("--held-at-nominal", action="store_true",
+                    help="diagnosis: only the fitted E1, E2, G12 drawn, the held constants at their datasheet values")
+    ap.add_argument("--exact-masses", action="store_true",
+                    help="diagnosis: the sensor masses exactly as declared (same random stream otherwise)")
     ap.add_argument("--truth", default="reference", choices=("reference", "ritz"),
                     help="the plate playing reality: the reference mesh or the independent Ritz plate")
     ap.add_argument("--summary", action="store_true",
                     help="no new cases: the stored ones against today's prediction for their layout")
     args = ap.parse_args(argv)
-    TRUTH["model"] = args.truth
+    TRUTH.update(model=args.truth, held_at_nominal=args.held_at_nominal, exact_masses=args.exact_masses)
     print(machine(), flush=True)
     out = Path(args.out)
     done: dict = {}
