@@ -152,10 +152,18 @@ def evaluate(prob: DesignProblem, sensors, taps, masses=None) -> Evaluation:
     Finv = np.linalg.inv(F)
     cov = Finv.copy()
     type_a = np.sqrt(np.maximum(np.diagonal(Finv, axis1=-2, axis2=-1), 0.0))
+    parts = {}
+    if prob.model_error is not None and np.any(prob.model_error):
+        # the model error left after the mesh correction has one sign for every mode: its effect
+        # is the fit's bias b = F^-1 J^T W e, added as b b^T (as engine.identify.verdict.systematic
+        # adds it to the fit's own stds)
+        g = np.einsum("dmb,dmp,m->dbp", w, Jf, np.asarray(prob.model_error, float))
+        b = np.einsum("dbpq,dbq->dbp", Finv, g)
+        cov = cov + b[..., :, None] * b[..., None, :]
+        parts["discretisation (systematic)"] = b ** 2
     # fixed inputs the same for every layout: held constants and the budget's inputs
     cols = [ms.jac[:, :, i] for i in prob.fixed] + [np.asarray(c, float) for c, _ in prob.inputs.values()]
     u = np.array(list(prob.fixed_u) + [float(uu) for _, uu in prob.inputs.values()], float)
-    parts = {}
     if cols:
         X = np.stack(cols, axis=-1)                                        # (D, M, nx)
         G = np.einsum("dmb,dmp,dmx->dbpx", w, Jf, X)
@@ -163,7 +171,7 @@ def evaluate(prob: DesignProblem, sensors, taps, masses=None) -> Evaluation:
             G = G + (Jw.T * prob.wave_weight) @ prob.wave_inputs
         A = Finv @ G
         cov = cov + (A * u ** 2) @ np.swapaxes(A, -1, -2)
-        parts = {n: A[..., k] ** 2 * u[k] ** 2 for k, n in enumerate(prob.input_names())}
+        parts.update({n: A[..., k] ** 2 * u[k] ** 2 for k, n in enumerate(prob.input_names())})
     if meas.mass_u_rel > 0 and np.any(m_kg > 0):
         Xm = -0.5 * ms.phi2[:, :, S]                                       # (D, M, B, ns), per kg
         Gm = np.einsum("dmb,dmp,dmbs->dbps", w, Jf, Xm)

@@ -148,6 +148,8 @@ def summary(res: services.Identification) -> str:
     elif not fit.get("consistent") and fit.get("unexplained_peaks"):
         lines.append(f"INCONSISTENT FIT: {fit['unexplained_peaks']} of {len(res.pairing or [])} peaks match no "
                      "predicted mode: the constants below are NOT identified (labid diagnose looks for the cause)")
+    elif fit.get("questionable"):     # engine.identify.verdict: more peaks set aside than a peak list holds spurious
+        lines.append(fit["questionable"])
     elif not fit.get("consistent"):
         lines.append(f"INCONSISTENT FIT: chi^2/nu = {fit.get('chi2_per_dof', float('nan')):.3g} "
                      f"(p = {fit.get('p_value', float('nan')):.2g}): the constants below are NOT identified")

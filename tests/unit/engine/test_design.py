@@ -91,6 +91,22 @@ def test_a_tap_on_the_centre_lines_loses_modes_and_information(plate):
     assert np.all(ev.std[:, 0] > ev.std[:, 1])
 
 
+def test_a_uniform_model_error_biases_every_modulus_by_twice_it(plate):
+    """A model error of the same relative size c on every mode is what scaling both moduli by
+    (1 + c)^2 does (f ~ sqrt(modulus)): the systematic part the plan adds (the fit's bias
+    F^-1 J^T W e) is 2c on E and on G, whatever the layout; the data's part is unchanged."""
+    _, _, ms, n = plate
+    c = 1e-3
+    base = DesignProblem(ms, Measurement(contact_s=None), fit=(0, 1))
+    prob = DesignProblem(ms, Measurement(contact_s=None), fit=(0, 1), model_error=np.full(ms.freqs.shape[1], c))
+    ev = evaluate(prob, [[0, 8, 72], [3, 40, 77]], [30, 50])
+    np.testing.assert_allclose(ev.parts["discretisation (systematic)"], (2 * c) ** 2, rtol=1e-6)
+    ev0 = evaluate(DesignProblem(ms, Measurement(contact_s=None), fit=(0, 1),
+                                 model_error=np.zeros(ms.freqs.shape[1])), [[0, 8, 72]], [30])
+    assert "discretisation (systematic)" not in ev0.parts
+    assert np.all(evaluate(base, [[0, 8, 72]], [30]).std <= ev.std[:, :1] + 1e-15)
+
+
 def test_search_never_ends_worse_than_its_start_and_keeps_its_gaps(plate):
     _, _, ms, n = plate
     prob = DesignProblem(ms, Measurement(mass_kg=0.002, contact_s=None), fit=(0, 1))
