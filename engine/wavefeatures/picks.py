@@ -163,6 +163,7 @@ class Direction:
     prior_margin: dict = field(default_factory=dict)  # mode -> its relative uncertainty
     strict: bool = True        # stage 1 (False): overlaps are not dropped, the picks only rescale
     record_s: float = 0.0      # how long after the earliest onset the records reach (s)
+    memo: dict = field(default_factory=dict)   # one shot's picks by wavelet, stage and state (pipeline)
 
     @property
     def known_source(self) -> bool:

@@ -238,21 +238,40 @@ def _category(r: str) -> str:
     return r.split(":")[0].split(" (")[0]
 
 
+def _state(d: Direction, wl: waves.Wavelet, j: int) -> tuple:
+    """What one shot's picks depend on besides its record: the key of ``Direction.memo``."""
+    def arr(v):
+        return np.asarray(v, float).tobytes() if v is not None else None
+    return (wl, j, d.strict, tuple(d.t0), None if d.t0_prior is None else tuple(d.t0_prior),
+            tuple(sorted((m, arr(v)) for m, v in d.scale.items())), tuple(sorted(d.margin.items())))
+
+
 def _shot_curves(d: Direction, wl: waves.Wavelet, shots, first_only: bool = False):
     """Per shot {mode: GroupVelocity} after the mode check, the first shot's arrivals and
-    the drop counts {mode: {reason: n}} of the first shot."""
+    the drop counts {mode: {reason: n}} of the first shot.
+
+    One shot's picks depend only on its record, the wavelet and the direction's state
+    (``_state``): they are kept in ``d.memo`` with the onset they leave in ``d.t0``. The
+    wavelet choice measures the first shot of every candidate in both stages, and the
+    chosen wavelets and the centre-frequency sweep (often a candidate) redo exactly those:
+    the memo saves them (issue 29: a third of the demo's wave analysis)."""
     per_shot, first_arrs, counts = [], None, None
     for j, rec in enumerate(shots[:1] if first_only else shots):
-        cache: dict = {}
-        cur, arrs = {}, {}
-        locate_onset(d, wl, rec, cache)
-        for m in MODES:
-            if d.pair(m)[0] is None:
-                continue
-            cur[m], arrs[m] = _velocity(d, m, wl, rec, cache)
-        cnt = {m: {} for m in cur}
-        before = {m: g.valid for m, g in cur.items()}
-        cur = _check_modes(d, cur, cnt)
+        key = _state(d, wl, j)
+        if key in d.memo:
+            cur, arrs, cnt, before, d.t0 = d.memo[key]
+        else:
+            cache: dict = {}
+            cur, arrs = {}, {}
+            locate_onset(d, wl, rec, cache)
+            for m in MODES:
+                if d.pair(m)[0] is None:
+                    continue
+                cur[m], arrs[m] = _velocity(d, m, wl, rec, cache)
+            cnt = {m: {} for m in cur}
+            before = {m: g.valid for m, g in cur.items()}
+            cur = _check_modes(d, cur, cnt)
+            d.memo[key] = (cur, arrs, cnt, before, d.t0)
         if j == 0:
             first_arrs = arrs
             # frequencies the pickers dropped (the mode check counts its own)
