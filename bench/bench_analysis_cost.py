@@ -18,7 +18,8 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1])) if "PYTHONPATH" not in os.environ else None
+if "PYTHONPATH" not in os.environ:     # with PYTHONPATH (an A/B run): that tree's labid
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def main() -> int:
