@@ -20,7 +20,7 @@ import numpy as np
 from .. import waves
 from ..laminate import Laminate
 from ..safe import mode_velocities
-from .predict import Packet, SourceModel, family, predict_packets, source_signature
+from .predict import Packet, SourceModel, family, model_maxima, predict_packets, source_signature
 
 __all__ = ["MODES", "WaveSettings", "Sensor", "WaveSetup", "Direction", "noise_rms", "sensor_delay",
            "direction_of", "locate_onset", "packets_at", "arrivals_of", "nominal_cg"]
@@ -365,6 +365,12 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
     bias_s = np.zeros(nf)
     s_delay = sensor_delay(s, freqs)
     c_src = source_signature(d.setup.source, freqs, wl)[0] + s_delay
+    onsets = 0.5 * (lo_s + hi_s) - c_src          # the onset on the record axis
+    rows = np.flatnonzero(valid & ~np.array([bool(r) for r in reason], bool))
+    pre_w = {} if target.model_w is None else {id(p): model_maxima(
+        p, rows, arr.times_s[rows] - onsets[rows] - s_delay[rows], ranges[id(p)][0][rows], ranges[id(p)][1][rows],
+        onsets[rows] + c_src[rows] + p.delay_s[rows]) for p in pk if p is not target and p.model_w is not None}
+    at = {int(i): j for j, i in enumerate(rows)}
     for i in range(nf):
         if reason[i]:
             valid[i], why[i] = False, reason[i]
@@ -400,6 +406,14 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
                 # between the two rotates at most at their frequency spread)
                 # the model's packet (no sensor response) sits at onset + sensor delay + tau;
                 # on the record it may lie anywhere in [p_lo, p_hi] around its nominal place
+                pre = pre_w.get(id(p))
+                if pre is not None and pre[0][at[i]]:      # the same maxima, computed at once
+                    if pre[1][at[i]]:
+                        continue
+                    amax, damax = float(pre[2][at[i]]), float(pre[3][at[i]])
+                    items.append((amax / peak_t, (st * st * damax + 0.7 * st * amax) / peak_t,
+                                  f"{p.mode} {p.path}", (p.mode, round(p.length_m, 3))))
+                    continue
                 mid = onset + c_src[i] + p.delay_s[i]
                 tau = tc - onset - s_delay[i]
                 k0 = int(np.floor((tau - (p_hi - mid)) / p.model_step_s))
