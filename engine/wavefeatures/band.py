@@ -10,6 +10,7 @@ change. Units: Hz, s.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +20,7 @@ from ..laminate import Laminate
 from .picks import WaveSettings
 from .predict import SourceModel
 
-__all__ = ["Band", "default_wavelet", "signal_band", "snr_band", "source_band", "analysis_band"]
+__all__ = ["Band", "default_wavelet", "wavelet_candidates", "signal_band", "snr_band", "source_band", "analysis_band"]
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,26 @@ def default_wavelet(laminate: Laminate) -> waves.Wavelet:
     """The paper's wavelet: cmor2-1 for an isotropic plate, cmor2-5 for a laminate."""
     iso = all(m.isotropic for m in laminate.materials.values()) and len(laminate.plies) == 1
     return waves.PAPER_ALUMINIUM if iso else waves.PAPER_CFRP
+
+
+def wavelet_candidates(f: np.ndarray, laminate: Laminate, wavelet: tuple[float, float] | None = None
+                       ) -> list[waves.Wavelet]:
+    """The candidate wavelets over the grid ``f`` (Hz), in the order tried (pipeline step 6);
+    ``wavelet`` (B, C): that one alone."""
+    if wavelet:
+        return [waves.Wavelet(*wavelet)]
+    cands = [default_wavelet(laminate)]
+    if f.size > 1 and f[-1] > f[0]:
+        # the centre C giving ~5 independent points over the band (spacing f / (pi C) at B = 2)
+        c_band = round(min(max(4 * float(np.mean(f)) / (math.pi * (f[-1] - f[0])), 1.0), 5.0) * 2) / 2
+        cands.append(waves.Wavelet(2.0, c_band))
+    cands += [waves.Wavelet(2.0, 3.0), waves.Wavelet(2.0, 2.0), waves.Wavelet(2.0, 1.5), waves.PAPER_ALUMINIUM,
+              waves.Wavelet(1.0, 1.0), waves.Wavelet(0.5, 1.0)]
+    out = []
+    for c in cands:
+        if c not in out:
+            out.append(c)
+    return out
 
 
 def _fmt_band(lo: float, hi: float) -> str:

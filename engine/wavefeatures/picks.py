@@ -20,7 +20,7 @@ import numpy as np
 from .. import waves
 from ..laminate import Laminate
 from ..safe import mode_velocities
-from .predict import Packet, SourceModel, family, predict_packets, source_signature
+from .predict import Packet, SourceModel, family, model_maxima, predict_packets, source_signature
 
 __all__ = ["MODES", "WaveSettings", "Sensor", "WaveSetup", "Direction", "noise_rms", "sensor_delay",
            "direction_of", "locate_onset", "packets_at", "arrivals_of", "nominal_cg"]
@@ -163,6 +163,7 @@ class Direction:
     prior_margin: dict = field(default_factory=dict)  # mode -> its relative uncertainty
     strict: bool = True        # stage 1 (False): overlaps are not dropped, the picks only rescale
     record_s: float = 0.0      # how long after the earliest onset the records reach (s)
+    memo: dict = field(default_factory=dict)   # one shot's picks by wavelet, stage and state (pipeline)
 
     @property
     def known_source(self) -> bool:
@@ -300,6 +301,19 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         r = ranges[id(p)]
         return r[0][i], r[1][i]
 
+    # the foreign packets that may claim a peak, per frequency: predicted there and not much
+    # weaker than the target (see below); their centre and half-width, arrays over (packet,
+    # frequency), so that each frequency's test is one array expression (issue 29: the
+    # per-packet, per-peak Python loop was a third of this function's CPU)
+    others = [p for p in pk if p is not target]
+    with np.errstate(invalid="ignore"):
+        claim = np.array([np.isfinite(p.delay_s) & ~(np.isfinite(p.amplitude) & np.isfinite(target.amplitude)
+                                                     & (p.amplitude < 0.05 * target.amplitude)) for p in others],
+                         bool).reshape(len(others), nf)
+    o_mid = np.array([0.5 * (ranges[id(p)][0] + ranges[id(p)][1]) for p in others]).reshape(len(others), nf)
+    o_half = np.array([0.5 * (ranges[id(p)][1] - ranges[id(p)][0]) + p.spread_s for p in others]
+                      ).reshape(len(others), nf)
+
     for i in range(nf):
         if not np.isfinite(target.delay_s[i]) or not np.isfinite(lo_s[i]):
             reason[i] = "no prediction"
@@ -316,33 +330,21 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         if peaks.size:
             peaks = peaks[A[i, peaks] >= 0.05 * A[i, peaks].max()]
         best = None
-        def weak(p, i):
-            return (np.isfinite(p.amplitude[i]) and np.isfinite(target.amplitude[i])
-                    and p.amplitude[i] < 0.05 * target.amplitude[i])
-
-        def z(lo_p, hi_p, sp, tc):
-            """Distance of tc from a packet's nominal place, in its own uncertainty (the
-            half-width of where it may lie plus its width)."""
-            return abs(tc - 0.5 * (lo_p + hi_p)) / (0.5 * (hi_p - lo_p) + sp)
-
-        for k in peaks:
-            tc = t[k]
-            z_t = z(a_lo, a_hi, sig, tc)
-            mine = True
-            for p in pk:
-                if p is target or not np.isfinite(p.delay_s[i]):
-                    continue
-                # a packet predicted much weaker than the target cannot be a peak as strong
-                # (a mode the records did not show, with a wide velocity range, would
-                # otherwise claim every peak inside that range)
-                if weak(p, i):
-                    continue
-                p_lo, p_hi = rng(p, i)
-                if z(p_lo, p_hi, p.spread_s[i], tc) < z_t:
-                    mine = False
-                    break
-            if mine and (best is None or A[i, k] > A[i, best]):
-                best = k
+        if peaks.size:
+            # z: the distance of a peak from a packet's nominal place, in its own uncertainty
+            # (the half-width of where it may lie plus its width); a peak is the target's when
+            # no foreign packet is nearer in that sense. A packet predicted much weaker than
+            # the target cannot be a peak as strong (a mode the records did not show, with a
+            # wide velocity range, would otherwise claim every peak inside that range)
+            tc = t[peaks]
+            z_t = np.abs(tc - 0.5 * (a_lo + a_hi)) / (0.5 * (a_hi - a_lo) + sig)
+            rows = claim[:, i]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                z_o = np.abs(tc[None, :] - o_mid[rows, i][:, None]) / o_half[rows, i][:, None]
+            mine = ~(z_o < z_t[None, :]).any(axis=0)
+            if mine.any():
+                ks = peaks[mine]
+                best = int(ks[int(np.argmax(A[i, ks]))])
         if best is None:
             reason[i] = "no packet at the predicted time" if peaks.size else "peak on the window edge"
             continue
@@ -363,6 +365,12 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
     bias_s = np.zeros(nf)
     s_delay = sensor_delay(s, freqs)
     c_src = source_signature(d.setup.source, freqs, wl)[0] + s_delay
+    onsets = 0.5 * (lo_s + hi_s) - c_src          # the onset on the record axis
+    rows = np.flatnonzero(valid & ~np.array([bool(r) for r in reason], bool))
+    pre_w = {} if target.model_w is None else {id(p): model_maxima(
+        p, rows, arr.times_s[rows] - onsets[rows] - s_delay[rows], ranges[id(p)][0][rows], ranges[id(p)][1][rows],
+        onsets[rows] + c_src[rows] + p.delay_s[rows]) for p in pk if p is not target and p.model_w is not None}
+    at = {int(i): j for j, i in enumerate(rows)}
     for i in range(nf):
         if reason[i]:
             valid[i], why[i] = False, reason[i]
@@ -398,6 +406,14 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
                 # between the two rotates at most at their frequency spread)
                 # the model's packet (no sensor response) sits at onset + sensor delay + tau;
                 # on the record it may lie anywhere in [p_lo, p_hi] around its nominal place
+                pre = pre_w.get(id(p))
+                if pre is not None and pre[0][at[i]]:      # the same maxima, computed at once
+                    if pre[1][at[i]]:
+                        continue
+                    amax, damax = float(pre[2][at[i]]), float(pre[3][at[i]])
+                    items.append((amax / peak_t, (st * st * damax + 0.7 * st * amax) / peak_t,
+                                  f"{p.mode} {p.path}", (p.mode, round(p.length_m, 3))))
+                    continue
                 mid = onset + c_src[i] + p.delay_s[i]
                 tau = tc - onset - s_delay[i]
                 k0 = int(np.floor((tau - (p_hi - mid)) / p.model_step_s))

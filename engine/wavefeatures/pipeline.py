@@ -58,10 +58,10 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .. import waves
-from .band import Band, analysis_band, default_wavelet, signal_band, snr_band
+from .band import Band, analysis_band, default_wavelet, signal_band, snr_band, wavelet_candidates
 from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of, locate_onset,
                     noise_rms, nominal_cg, sensor_delay)
-from . import crosstalk, merge
+from . import crosstalk, memo, merge
 from .survey import survey_direction, survey_onsets
 
 __all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet", "stack_shots",
@@ -240,19 +240,25 @@ def _category(r: str) -> str:
 
 def _shot_curves(d: Direction, wl: waves.Wavelet, shots, first_only: bool = False):
     """Per shot {mode: GroupVelocity} after the mode check, the first shot's arrivals and
-    the drop counts {mode: {reason: n}} of the first shot."""
+    the drop counts {mode: {reason: n}} of the first shot. Each shot's picks are remembered
+    (``engine.wavefeatures.memo``: the wavelet choice and the sweep redo many)."""
     per_shot, first_arrs, counts = [], None, None
     for j, rec in enumerate(shots[:1] if first_only else shots):
-        cache: dict = {}
-        cur, arrs = {}, {}
-        locate_onset(d, wl, rec, cache)
-        for m in MODES:
-            if d.pair(m)[0] is None:
-                continue
-            cur[m], arrs[m] = _velocity(d, m, wl, rec, cache)
-        cnt = {m: {} for m in cur}
-        before = {m: g.valid for m, g in cur.items()}
-        cur = _check_modes(d, cur, cnt)
+        key = memo.key(d, wl, j)
+        if key in d.memo:
+            cur, arrs, cnt, before, d.t0 = d.memo[key]
+        else:
+            cache = memo.shot_cache(d, wl, j)
+            cur, arrs = {}, {}
+            locate_onset(d, wl, rec, cache)
+            for m in MODES:
+                if d.pair(m)[0] is None:
+                    continue
+                cur[m], arrs[m] = _velocity(d, m, wl, rec, cache)
+            cnt = {m: {} for m in cur}
+            before = {m: g.valid for m, g in cur.items()}
+            cur = _check_modes(d, cur, cnt)
+            memo.keep(d, key, (cur, arrs, cnt, before, d.t0), cache)
         if j == 0:
             first_arrs = arrs
             # frequencies the pickers dropped (the mode check counts its own)
@@ -300,27 +306,9 @@ def _measure(d: Direction, wl: waves.Wavelet, shots, first_only: bool = False):
     return out
 
 
-def _wavelet_candidates(d: Direction, settings: WaveSettings) -> list[waves.Wavelet]:
-    if settings.wavelet:
-        return [waves.Wavelet(*settings.wavelet)]
-    f = d.freqs
-    cands = [default_wavelet(d.setup.laminate)]
-    if f.size > 1 and f[-1] > f[0]:
-        # the centre C giving ~5 independent points over the band (spacing f / (pi C) at B = 2)
-        c_band = round(min(max(4 * float(np.mean(f)) / (math.pi * (f[-1] - f[0])), 1.0), 5.0) * 2) / 2
-        cands.append(waves.Wavelet(2.0, c_band))
-    cands += [waves.Wavelet(2.0, 3.0), waves.Wavelet(2.0, 2.0), waves.Wavelet(2.0, 1.5), waves.PAPER_ALUMINIUM,
-              waves.Wavelet(1.0, 1.0), waves.Wavelet(0.5, 1.0)]
-    out = []
-    for c in cands:
-        if c not in out:
-            out.append(c)
-    return out
-
-
 def _first_shot(d: Direction, settings: WaveSettings, shots) -> dict:
     """{wavelet: first-shot curves} of every candidate (one candidate: nothing to compare)."""
-    cands = _wavelet_candidates(d, settings)
+    cands = wavelet_candidates(d.freqs, d.setup.laminate, settings.wavelet)
     if len(cands) == 1:
         return {cands[0]: None}
     return {wl: _measure(d, wl, shots, first_only=True)[0][0] for wl in cands}

@@ -32,7 +32,7 @@ from scipy.fft import next_fast_len
 from .. import safe, waves
 from ..laminate import Laminate
 
-__all__ = ["SourceModel", "Packet", "source_signature", "predict_packets", "isotropic"]
+__all__ = ["SourceModel", "Packet", "source_signature", "predict_packets", "isotropic", "model_maxima"]
 
 
 @dataclass(frozen=True)
@@ -242,3 +242,32 @@ def predict_packets(lam: Laminate, source: SourceModel, source_xy, sensor_xy, pl
         top = np.nanmax([np.nanmax(pk.amplitude) for pk in out])
         out = [pk for pk in out if np.nanmax(pk.amplitude) >= min_level * top]
     return out
+
+
+def model_maxima(p: Packet, rows: np.ndarray, tau: np.ndarray, lo: np.ndarray, hi: np.ndarray, mid: np.ndarray):
+    """The largest |W| and |d|W|/dt| of ``p``'s model scalogram where it may lie at each of
+    ``rows`` (frequency indices): the samples k0-1 .. k1 (clipped to the model) with k0 =
+    floor((tau - (hi - mid)) / step), k1 = ceil((tau - (lo - mid)) / step) + 1, all arrays over
+    ``rows`` (s). Returns (computed, empty, |W| max, |dW| max) over the rows: ``computed`` False
+    where an input is not finite (the caller's own path then), ``empty`` where no sample is left.
+    One ``reduceat`` per array instead of two slices per frequency (issue 29); the maxima are
+    the same numbers."""
+    n, m = p.model_w.shape
+    with np.errstate(invalid="ignore"):
+        f0 = np.floor((tau - (hi - mid)) / p.model_step_s)
+        f1 = np.ceil((tau - (lo - mid)) / p.model_step_s)
+    ok = np.isfinite(f0) & np.isfinite(f1) & (np.abs(f0) < 2 ** 52) & (np.abs(f1) < 2 ** 52)
+    k0 = np.maximum(np.where(ok, f0, 0).astype(np.int64) - 1, 0)
+    k1 = np.minimum(np.where(ok, f1, 0).astype(np.int64) + 2, m)
+    empty = k1 - k0 < 1
+    take = np.flatnonzero(ok & ~empty)
+    amax = np.zeros(rows.size, p.model_w.dtype)
+    damax = np.zeros(rows.size, p.model_dw.dtype)
+    if take.size:
+        r = rows[take]
+        idx = np.stack([r * m + k0[take], r * m + k1[take]], axis=1).ravel()
+        if idx[-1] >= n * m:          # the last segment runs to the end by itself
+            idx = idx[:-1]
+        amax[take] = np.maximum.reduceat(p.model_w.reshape(-1), idx)[::2]
+        damax[take] = np.maximum.reduceat(p.model_dw.reshape(-1), idx)[::2]
+    return ok, empty, amax, damax
