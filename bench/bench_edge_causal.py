@@ -41,6 +41,7 @@ from labid.inputs.rig import rig_from_text  # noqa: E402
 from labid.inputs.specimen import load_specimen  # noqa: E402
 from labid.workflows.analysis import wave_features  # noqa: E402
 from mock_hw import waves as mock_waves  # noqa: E402
+from mock_hw import rig as mock_rig  # noqa: E402
 from mock_hw.rig import truth_laminate  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -118,11 +119,13 @@ def source_padded(t_pad: float = 200e-6):
     mock_waves.source_force = lambda key: Delayed(force(key))
     mock_waves._causal = lambda y, fs, t_first: np.roll(causal(y, fs, t_pad + t_first), -int(round(t_pad * fs)))
     mock_waves._wave_fine.cache_clear()
+    mock_rig._cached_template.cache_clear()
     try:
         yield
     finally:
         mock_waves.source_force, mock_waves._causal = force, causal
         mock_waves._wave_fine.cache_clear()
+        mock_rig._cached_template.cache_clear()
 
 
 def records_case(large, n=36) -> None:
