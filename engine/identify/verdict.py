@@ -230,10 +230,10 @@ def verdict(ctx: FitContext, est: Estimate, *, scale_sigmas: bool = True,
     notes: list[str] = []
     n_peaks = int(np.size(fwd.assignment.index)) if unexplained else 0
     p_count, p_joint = set_aside_test(n_peaks, unexplained, fit["p_value"])
-    if unexplained:
-        fit["set_aside_p"] = min(p_count, p_joint)
-    questionable = None
     p_aside = min(p_count, p_joint)
+    if unexplained:
+        fit["set_aside_p"] = p_aside
+    questionable = None
     if unexplained > max(MAX_UNEXPLAINED, MAX_UNEXPLAINED_FRACTION * n_peaks) or p_aside < checks.P_CONSISTENT:
         # a fit that explains only part of its peak list is not a result, however small its chi^2
         # (seen: a Lai-Ip update from a 20 % off start set 7 of 10 peaks aside, E1 -18 %, chi^2/nu 0.01;
