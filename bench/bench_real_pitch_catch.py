@@ -15,12 +15,19 @@ bench/import_real/yeum_rig.toml (what is assumed is written there):
 * 'A': actuator A alone (what a lab with one PZT records: S0 and A0 in one record);
 * 'S': (A + C) / 2 and 'A': (A - C) / 2, the modes separated by the collocated actuators as
   the authors do (Run_EXPValid.m); analysed with the rig's source as a symmetric /
-  antisymmetric pair.
+  antisymmetric pair;
+* "S'" and "A'": the same with the other mode's residue removed (engine.waves.pair): the
+  actuators leave A0 at -14 dB in S (and S0 at -22 dB in A); the residue ratio r is measured at
+  D, where the foreign packet arrives alone, and S - Re(r H[A]) formed at B and D (B and D lie on
+  one ray from the pair, so one r holds for both). Nothing of it comes from the nominal.
+
+Each run is analysed from two nominals: E, G 32 % low (yeum_al_nominal_off.toml) and 32 % high
+(yeum_al_nominal_high.toml).
 
 Independent estimate (numpy/scipy only, no labid code): per mode record, a 4th-order
 Butterworth band-pass (zero phase) of +-20 % around f, the Hilbert envelope, its first peak
 above 30 % of the record's envelope maximum at B and at D, c_g = (0.42 - 0.12) / (t_D - t_B),
-at f = 150, 165, 180, 195, 210 kHz. Reference (not a measurement): the exact Rayleigh-Lamb
+at f = 135-225 kHz every 15 kHz; on the raw (A +- C) / 2 and on the residue-free records. Reference (not a measurement): the exact Rayleigh-Lamb
 c_g of a generic aluminium (E 70 GPa, nu 0.33, 2700 kg/m^3) at f h = 0.45-0.63 MHz mm,
 from bench/independent/legendre_safe.py (within 1e-7 of the exact table in ORACLES.md).
 
@@ -44,6 +51,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from bench._machine import machine  # noqa: E402
 from bench.independent.legendre_safe import LegendrePlate, branches, layers_of  # noqa: E402
+from engine.waves.pair import cancel_residue, residue_ratio  # noqa: E402
 from labid.cli.main import main as labid  # noqa: E402
 
 HERE = ROOT / "bench" / "import_real"
@@ -52,7 +60,9 @@ COMMIT = "18e4cffff92ba112de165df6a1ec35f4ec558a2c"
 FS = 5.0e6
 PEAK = 5000                      # the burst's peak (sample), Run_EXPValid.m
 PATH = 0.42 - 0.12               # D - B, m
-FREQS = (150e3, 165e3, 180e3, 195e3, 210e3)
+FREQS = (135e3, 150e3, 165e3, 180e3, 195e3, 210e3, 225e3)
+BAND = (100e3, 260e3)             # the 180 kHz 5-cycle burst's band, Hz
+MAX_SPREAD = 0.05                 # refuse a residue ratio that moves more with its gate
 
 
 def record(name: str, clone: Path | None) -> np.ndarray:
@@ -109,52 +119,80 @@ def main(argv) -> None:
               "or give a clone's path")
         return
     rec = {k: record(k, clone) for k in ("CH0CH1", "CH0CH2", "CH3CH1", "CH3CH2")}
+    sym = ((rec["CH0CH1"] + rec["CH3CH1"]) / 2, (rec["CH0CH2"] + rec["CH3CH2"]) / 2)
+    anti = ((rec["CH0CH1"] - rec["CH3CH1"]) / 2, (rec["CH0CH2"] - rec["CH3CH2"]) / 2)
+    t0 = PEAK / FS
+    res = {"A0 in S": residue_ratio(sym[1], anti[1], FS, BAND, after_s=t0),
+           "S0 in A": residue_ratio(anti[1], sym[1], FS, BAND, after_s=t0)}
+    print("\nresidue of the other mode, measured at D (where its packet arrives alone):")
+    for k, r in res.items():
+        print(f"  {k}: r = {abs(r.ratio):.3f} at {np.degrees(np.angle(r.ratio)):.1f} deg ({r.level_db:.1f} dB), gate "
+              f"{(r.gate_s[0] - t0) * 1e6:.1f}-{(r.gate_s[1] - t0) * 1e6:.1f} us, moves {100 * r.spread:.1f} % with the gate"
+              + ("" if r.spread <= MAX_SPREAD else "  REFUSED (not alone in the gate)"))
     runs = {"A alone": (rec["CH0CH1"], rec["CH0CH2"], None),
-            "S: (A + C) / 2": ((rec["CH0CH1"] + rec["CH3CH1"]) / 2, (rec["CH0CH2"] + rec["CH3CH2"]) / 2, "symmetric"),
-            "A: (A - C) / 2": ((rec["CH0CH1"] - rec["CH3CH1"]) / 2, (rec["CH0CH2"] - rec["CH3CH2"]) / 2,
-                               "antisymmetric")}
+            "S: (A + C) / 2": (*sym, "symmetric"),
+            "A: (A - C) / 2": (*anti, "antisymmetric")}
+    if res["A0 in S"].spread <= MAX_SPREAD:
+        r = res["A0 in S"].ratio
+        runs["S': A0 residue removed"] = (cancel_residue(sym[0], anti[0], r), cancel_residue(sym[1], anti[1], r),
+                                          "symmetric")
+    if res["S0 in A"].spread <= MAX_SPREAD:
+        r = res["S0 in A"].ratio
+        runs["A': S0 residue removed"] = (cancel_residue(anti[0], sym[0], r), cancel_residue(anti[1], sym[1], r),
+                                          "antisymmetric")
     f = np.array(FREQS)
     ref = reference(f)
     indep = {"S0": [envelope_cg(*runs["S: (A + C) / 2"][:2], fi) for fi in f],
              "A0": [envelope_cg(*runs["A: (A - C) / 2"][:2], fi) for fi in f]}
+    clean = {m: [envelope_cg(*runs[k][:2], fi) for fi in f] for m, k in
+             (("S0", "S': A0 residue removed"), ("A0", "A': S0 residue removed")) if k in runs}
     print("\nindependent envelope-peak estimate (band-pass +-20 %, Hilbert), B -> D, m/s:")
     for m in ("S0", "A0"):
         print(f"  {m}: " + ", ".join(f"{fi / 1e3:.0f} kHz {v:.0f}" for fi, v in zip(f, indep[m]))
               + "   (Rayleigh-Lamb, generic Al: " + ", ".join(f"{v:.0f}" for v in ref[m]) + ")")
+        if m in clean:
+            print(f"  {m}, residue removed: " + ", ".join(f"{v:.0f}" for v in clean[m]))
     rig_text = (HERE / "yeum_rig.toml").read_text()
-    with tempfile.TemporaryDirectory() as tmp:
-        d = Path(tmp)
-        for j, (label, (xb, xd, pair)) in enumerate(runs.items()):
-            rig = d / "rig.toml"
-            rig.write_text(rig_text if pair is None else rig_text.replace(
-                'diameter_m = 0.010\n', f'diameter_m = 0.010\npair = "{pair}"\n'))
-            write_csv(d / "B.csv", "B", xb)
-            write_csv(d / "D.csv", "D", xd)
-            run, feats = d / f"run_{j}.h5", d / f"f_{j}.json"
-            code, out, wi, ci = cli(["import", str(d / "B.csv"), str(d / "D.csv"), "--rig", str(rig), "--specimen",
-                                     str(HERE / "yeum_al_nominal_off.toml"), "--out", str(run), "--rate", "5e6",
-                                     "--pretrigger", "4931", "--units", "B=V,D=V", "--quiet"])
-            if code:
-                print(f"\n{label}: import failed ({code}): {out.strip()[-300:]}")
-                continue
-            code, out, wa, ca = cli(["analyze", str(run), "--out", str(feats)])
-            print(f"\n{label}: import {wi:.1f} s wall / {ci:.1f} s CPU, analyze {wa:.1f} s wall / {ca:.1f} s CPU "
-                  f"(exit {code})")
-            for ln in out.splitlines():
-                if ln.startswith(("warning", "A0", "S0", "dropped", "features")):
-                    print("  " + ln[:230])
-            if code:
-                continue
-            doc = json.loads(feats.read_text())
-            for w in doc.get("waves", []):
-                fw, v, s = (np.array(w[k]) for k in ("frequency_hz", "group_velocity_m_s", "sigma_m_s"))
-                mine = np.interp(fw, f, indep[w["mode"]], left=np.nan, right=np.nan)
-                rl = reference(fw)[w["mode"]]
-                print(f"  {w['mode']}: " + "; ".join(
-                    f"{fi / 1e3:.0f} kHz {vi:.0f} +- {si:.0f}" + (f" (envelope {mi:.0f}, {100 * (vi / mi - 1):+.1f} %)"
-                                                              if np.isfinite(mi) else "")
-                    + f" [R-L {100 * (vi / ri - 1):+.1f} %]" for fi, vi, si, mi, ri in zip(fw, v, s, mine, rl)))
+    for spec in ("yeum_al_nominal_off.toml", "yeum_al_nominal_high.toml"):
+        print(f"\n=== nominal {spec}")
+        with tempfile.TemporaryDirectory() as tmp:
+            analyse(Path(tmp), runs, rig_text, HERE / spec, f, indep, clean)
 
+
+def analyse(d: Path, runs: dict, rig_text: str, spec: Path, f: np.ndarray, indep: dict, clean: dict) -> None:
+    """labid import + analyze of each run; its points against the envelope estimate."""
+    for j, (label, (xb, xd, pair)) in enumerate(runs.items()):
+        rig = d / "rig.toml"
+        rig.write_text(rig_text if pair is None else rig_text.replace(
+            'diameter_m = 0.010\n', f'diameter_m = 0.010\npair = "{pair}"\n'))
+        write_csv(d / "B.csv", "B", xb)
+        write_csv(d / "D.csv", "D", xd)
+        run, feats = d / f"run_{j}.h5", d / f"f_{j}.json"
+        code, out, wi, ci = cli(["import", str(d / "B.csv"), str(d / "D.csv"), "--rig", str(rig), "--specimen",
+                                 str(spec), "--out", str(run), "--rate", "5e6",
+                                 "--pretrigger", "4931", "--units", "B=V,D=V", "--quiet"])
+        if code:
+            print(f"\n{label}: import failed ({code}): {out.strip()[-300:]}")
+            continue
+        code, out, wa, ca = cli(["analyze", str(run), "--out", str(feats)])
+        print(f"\n{label}: import {wi:.1f} s wall / {ci:.1f} s CPU, analyze {wa:.1f} s wall / {ca:.1f} s CPU "
+              f"(exit {code})")
+        for ln in out.splitlines():
+            if ln.startswith(("warning", "A0", "S0", "dropped", "features")):
+                print("  " + ln[:230])
+        if code:
+            continue
+        doc = json.loads(feats.read_text())
+        for w in doc.get("waves", []):
+            fw, v, s = (np.array(w[k]) for k in ("frequency_hz", "group_velocity_m_s", "sigma_m_s"))
+            rl = reference(fw)[w["mode"]]
+            est = {"envelope": np.interp(fw, f, indep[w["mode"]], left=np.nan, right=np.nan)}
+            if w["mode"] in clean:
+                est["residue-free envelope"] = np.interp(fw, f, clean[w["mode"]], left=np.nan, right=np.nan)
+            print(f"  {w['mode']}: {len(fw)} points " + "; ".join(
+                f"{fi / 1e3:.0f} kHz {vi:.0f} +- {si:.0f}" + "".join(
+                    f" ({k} {e[i]:.0f}, {100 * (vi / e[i] - 1):+.1f} %)" for k, e in est.items() if np.isfinite(e[i]))
+                + f" [R-L {100 * (vi / ri - 1):+.1f} %]" for i, (fi, vi, si, ri) in enumerate(zip(fw, v, s, rl))))
 
 if __name__ == "__main__":
     main(sys.argv[1:])

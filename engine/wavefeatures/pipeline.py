@@ -20,7 +20,9 @@ For each propagation direction of the wave sensors (``measure_waves``):
 2. path: source to sensor when the source is recorded (its scalogram gives the source
    time per frequency), else between the nearest and the farthest sensor of the
    direction (differential delays only: the source time is unknown when the record is
-   triggered on a sensor), else (one sensor) from the trigger time;
+   triggered on a sensor, and uncertain by the transducers' delay when triggered by the
+   generator: the onset is then voted for by the sensor pairs, ``survey_onsets``), else
+   (one sensor) from the trigger time;
 3. packets (``engine.wavefeatures.predict``): every mode's direct path and edge reflections,
    with the SAFE group velocities of the nominal specimen; a pick is a scalogram
    maximum inside the target's predicted window (nominal velocity +- ``gate_margin``)

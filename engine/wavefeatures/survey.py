@@ -150,12 +150,16 @@ def _pair_votes(near, far, peaks: dict, freqs, c_src, grid: np.ndarray, width: f
 
 def survey_onsets(dirs: Sequence[Direction], shots: Sequence[Mapping[str, np.ndarray]], n_shots: int = 3
                   ) -> tuple[tuple[float, ...], tuple[float, float]] | None:
-    """The source onset of each of the first ``n_shots`` shots (record axis, s) when the record
-    is triggered on a sensor and the source is not recorded, from every direction with two
-    sensors at different distances (their votes add up: one source, one onset), and the onset
-    range they span (plus the resolution); None when no direction can say."""
+    """The source onset of each of the first ``n_shots`` shots (record axis, s) when the source
+    is not recorded, from every direction with two sensors at different distances (their votes
+    add up: one source, one onset), and the onset range they span (plus the resolution); None
+    when no direction can say. Triggered on a sensor: the onset lies before the trigger.
+    Triggered by the generator: the onset is the trigger's up to the transducers' delay, which
+    nothing in the rig states (a real actuator and its bond lag the drive: 3.6-3.7 us on both
+    modes of Yeum's aluminium plate, bench/RESULTS.md issue 24 session 26), searched within
+    one source duration either side."""
     usable = [d for d in dirs if any(len({s.distance_m for s in d.sensors if f in s.families}) >= 2 for f in "AS")]
-    if not usable or usable[0].setup.trigger_distance_m is None or usable[0].setup.force_channel is not None:
+    if not usable or usable[0].setup.force_channel is not None:
         return None
     setup = usable[0].setup
     fs, pre = setup.fs_hz, setup.pretrigger
@@ -164,12 +168,16 @@ def survey_onsets(dirs: Sequence[Direction], shots: Sequence[Mapping[str, np.nda
     freqs = d0.freqs[::step]
     wl = SURVEY_WAVELET
     c_src = source_signature(setup.source, freqs, wl)[0]
-    # the onset lies before the trigger, by at most the trigger sensor's distance at half the
-    # slowest nominal velocity (no velocity of the nominal model is trusted more than that)
-    slow = min(float(np.nanmin(nominal_cg(d, m))) for d in usable for m in ("A0", "S0")
-               if np.isfinite(nominal_cg(d, m)).any())
-    lo = -setup.trigger_distance_m / (0.5 * slow) - setup.source.force().duration_s
-    grid = np.arange(lo, 2.0 / fs, 0.25 / fs)
+    dur = setup.source.force().duration_s
+    if setup.trigger_distance_m is None:
+        lo, hi = -dur, dur
+    else:
+        # the onset lies before the trigger, by at most the trigger sensor's distance at half the
+        # slowest nominal velocity (no velocity of the nominal model is trusted more than that)
+        slow = min(float(np.nanmin(nominal_cg(d, m))) for d in usable for m in ("A0", "S0")
+                   if np.isfinite(nominal_cg(d, m)).any())
+        lo, hi = -setup.trigger_distance_m / (0.5 * slow) - dur, 2.0 / fs
+    grid = np.arange(lo, hi, 0.25 / fs)
     width = 1.0e-6 + 1.0 / fs
     onsets = []
     for rec in shots[:n_shots]:
