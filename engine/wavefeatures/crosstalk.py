@@ -112,7 +112,7 @@ def _bound(d: Direction, x: np.ndarray, s: Sensor, drive: np.ndarray, W_drive: n
     the first wave can reach the sensor's near edge: at 1.5 x the fastest nominal group
     velocity, or 1.25 x the fastest the survey measured if that is more. Where that window
     holds none of the drive, c is the record's peak over the drive's (all of it may be
-    crosstalk)."""
+    crosstalk); a drive wholly outside the record leaves none (c = 0)."""
     fs, pre = d.setup.fs_hz, d.setup.pretrigger
     fast = 0.0
     for m in ("A0", "S0", "SH0"):
@@ -123,6 +123,11 @@ def _bound(d: Direction, x: np.ndarray, s: Sensor, drive: np.ndarray, W_drive: n
             fast = max(fast, r * float(np.nanmax(v)))
     k_on = pre + int(np.floor(onset_s * fs))
     k_first = pre + int(np.floor((onset_s + max(s.distance_m - 0.5 * s.length_m, 0.0) / fast) * fs))
+    peak = float(np.max(np.abs(drive))) if drive.size else 0.0
+    if not peak > 0:
+        # the drive lies wholly outside the record (an onset measured before its start): no
+        # crosstalk inside it (was: the record's peak over 1e-300, an overflow)
+        return np.zeros(np.shape(W_drive)), 0.0
     noise = noise_std(x, pre)
     c = coupling_bound(x, drive, k_on, k_first, noise)
     if not math.isfinite(c):
