@@ -1,0 +1,119 @@
+"""A second published record set (issue 24): a line scan on an aluminium plate.
+
+Records (real): GitHub eriknbd/Lamb_wave_analisis, commit a137a37a041fd01d747478ae596fd5a2031f289e,
+all_data/test_Al_tren_2105.mat: per burst frequency (250, 340, 500, 640 kHz) a matrix whose
+column 0 is the time (s) and columns 1-35 the records at 35 positions along one line (0, 2.5 .. 35
+mm every 2.5 mm, 35.5 .. 45 mm every 0.5 mm: the repository's notebook). The plate: aluminium,
+E 68.9 GPa, nu 0.33, 2700 kg/m^3 (the repository's Aluminium.py), 1 mm by its file names (1.5 mm
+in Aluminium.py's example). Not stated: the source, its distance, the trigger.
+
+Independent estimate (numpy/scipy only): per frequency, a 4th-order Butterworth band-pass of
++-20 %, the Hilbert envelope's first peak above 30 % of its maximum (parabola through log), at
+all 35 positions, and a straight-line fit of time against position: c_g = 1 / slope (the line
+scan's own estimate, 45 mm of lever, no source time needed). Reference (not a measurement):
+Rayleigh-Lamb A0 / S0 of that aluminium at 1.0 and 1.5 mm (bench/independent/legendre_safe.py).
+
+labid: the 500 kHz records at 0 and 45 mm as a pitch-catch pair (rig
+bench/import_real/erik_line_rig.toml says what is assumed), ``labid import`` + ``labid analyze``
+from E, G 32 % low and 32 % high (bench/import_real/erik_al_nominal_low|high.toml).
+
+Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_real_line_scan.py
+(the repository is mirrored with the ``fetch`` tool: github:eriknbd/Lamb_wave_analisis).
+"""
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from scipy import signal
+from scipy.io import loadmat
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from bench._machine import machine  # noqa: E402
+from bench.bench_real_pitch_catch import cli, write_csv  # noqa: E402
+from bench.independent.legendre_safe import LegendrePlate, branches, layers_of  # noqa: E402
+
+HERE = ROOT / "bench" / "import_real"
+MIRROR = Path("/work/.mirror/eriknbd+Lamb_wave_analisis/repo")
+COMMIT = "a137a37a041fd01d747478ae596fd5a2031f289e"
+FILE = "all_data/test_Al_tren_2105.mat"
+POS = np.array([0.0] + list(np.arange(2.5, 35.01, 2.5)) + list(np.arange(35.5, 45.01, 0.5))) * 1e-3
+
+
+def line_cg(a: np.ndarray, f0: float) -> tuple[float, float]:
+    """(c_g m/s, rms residual of the line s) from the 35 envelope peaks (module docstring)."""
+    t = a[:, 0]
+    fs = 1.0 / float(np.median(np.diff(t)))
+    sos = signal.butter(4, [0.8 * f0, 1.2 * f0], "bandpass", fs=fs, output="sos")
+    peaks = []
+    for j in range(1, a.shape[1]):
+        e = np.abs(signal.hilbert(signal.sosfiltfilt(sos, a[:, j] - np.mean(a[:, j]))))
+        k = int(signal.find_peaks(e, height=0.3 * e.max())[0][0])
+        la, lb, lc = np.log(e[k - 1:k + 2])
+        peaks.append(t[k] + 0.5 * (la - lc) / (la - 2 * lb + lc) / fs)
+    A = np.vstack([POS, np.ones(POS.size)]).T
+    c = np.linalg.lstsq(A, np.array(peaks), rcond=None)[0]
+    return 1.0 / c[0], float(np.std(np.array(peaks) - A @ c))
+
+
+def reference(h: float, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    E, nu, rho = 68.9e9, 0.33, 2700.0
+    G = E / (2 * (1 + nu))
+    c = dict(E1=E, E2=E, E3=E, nu12=nu, nu13=nu, nu23=nu, G12=G, G13=G, G23=G, density=rho)
+    br = branches(LegendrePlate(layers_of([(c, 0.0, h)]), 6), float(np.max(f)) * 1.05)
+    return br.at(0, 2 * np.pi * f)[1], br.at(2, 2 * np.pi * f)[1]
+
+
+def main() -> None:
+    print(f"machine: {machine()}")
+    if not MIRROR.exists():
+        print(f"records not found: fetch github:eriknbd/Lamb_wave_analisis (mirror {MIRROR})")
+        return
+    raw = subprocess.run(["git", "--git-dir", str(MIRROR), "show", f"{COMMIT}:{FILE}"], check=True,
+                         capture_output=True).stdout
+    mats = loadmat(io.BytesIO(raw))
+    print("\nindependent line-scan estimate (35 positions, 0-45 mm), m/s; Rayleigh-Lamb A0 / S0 at 1.0 | 1.5 mm:")
+    est = {}
+    for key in ("fss_0250kHz", "fss_0340kHz", "fss_0500kHz", "fss_0640kHz"):
+        f0 = float(key[4:8]) * 1e3
+        v, rms = line_cg(mats[key], f0)
+        est[f0] = v
+        a1, s1 = reference(1.0e-3, np.array([f0]))
+        a15, s15 = reference(1.5e-3, np.array([f0]))
+        print(f"  {f0 / 1e3:.0f} kHz: {v:.0f} (line rms {rms * 1e9:.0f} ns); A0 {a1[0]:.0f} | {a15[0]:.0f}, "
+              f"S0 {s1[0]:.0f} | {s15[0]:.0f}")
+    a = mats["fss_0500kHz"]
+    rig = HERE / "erik_line_rig.toml"
+    for spec in ("erik_al_nominal_low.toml", "erik_al_nominal_high.toml"):
+        with tempfile.TemporaryDirectory() as tmp:
+            d = Path(tmp)
+            write_csv(d / "P00.csv", "P00", a[:, 1])
+            write_csv(d / "P45.csv", "P45", a[:, 35])
+            code, out, wi, ci = cli(["import", str(d / "P00.csv"), str(d / "P45.csv"), "--rig", str(rig),
+                                     "--specimen", str(HERE / spec), "--out", str(d / "run.h5"), "--rate", "62.5e6",
+                                     "--pretrigger", "0", "--units", "P00=V,P45=V", "--quiet"])
+            if code:
+                print(f"\n{spec}: import failed ({code}): {out.strip()[-300:]}")
+                continue
+            code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json")])
+            print(f"\n{spec}: analyze {wa:.1f} s wall / {ca:.1f} s CPU (exit {code})")
+            for ln in out.splitlines():
+                if ln.startswith(("warning", "A0", "S0", "dropped", "features")):
+                    print("  " + ln[:230])
+            if code:
+                continue
+            for w in json.loads((d / "f.json").read_text()).get("waves", []):
+                print(f"  {w['mode']}: " + "; ".join(
+                    f"{fi / 1e3:.0f} kHz {vi:.0f} +- {si:.0f}" for fi, vi, si in
+                    zip(w["frequency_hz"], w["group_velocity_m_s"], w["sigma_m_s"]))
+                    + f" (line-scan estimate at 500 kHz: {est[500e3]:.0f})")
+
+
+if __name__ == "__main__":
+    main()
