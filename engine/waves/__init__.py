@@ -15,6 +15,8 @@ Modules (each readable alone):
   correction, time gates;
 * :mod:`.velocity` -- group velocity from arrivals, independent points;
 * :mod:`.paths` -- ray paths on a rectangular plate: direct and edge reflections (image sources).
+* :mod:`.pair` -- a collocated actuator pair's copy of the other mode in a mode-separated
+  record, measured where it arrives alone and removed (``residue_ratio``, ``cancel_residue``).
 
 The whole measurement of a wave run (band, gates, wavelet choice, S0 separation,
 shots, independent points) is :mod:`engine.wavefeatures.pipeline`.
