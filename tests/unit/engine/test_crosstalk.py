@@ -60,3 +60,31 @@ def test_bound_grows_when_the_window_holds_little_of_the_drive(case):
     assert short > coupling_bound(x, drive, PRE, k_first, noise_std(x, PRE))
     assert math.isinf(coupling_bound(x, drive, PRE, PRE + 1, noise_std(x, PRE)))
     assert math.isinf(coupling_bound(x, drive, 0, PRE, noise_std(x, PRE)))     # before the onset: no drive
+
+
+def test_a_drive_wholly_before_the_record_bounds_no_crosstalk():
+    """An onset measured before the record's first sample (no pre-trigger, the source's delay
+    voted negative): the drive model lies outside the record, so no crosstalk is inside it.
+    Before the fix the bound was the record's peak over 1e-300 (an overflow warning)."""
+    import warnings
+
+    from engine import waves
+    from engine.laminate import Laminate, Material, Ply
+    from engine.wavefeatures.crosstalk import bound_in
+    from engine.wavefeatures.picks import Sensor, WaveSettings, WaveSetup, direction_of
+    from engine.wavefeatures.predict import SourceModel
+
+    al = Material.isotropic_from(70e9, 2700.0, nu=0.33, name="Al")
+    src = SourceModel("tone_burst", frequency_hz=F0, cycles=CYCLES, electrical=True)
+    s = Sensor("B", 0.1, 0.0, 0.0, (0.6, 0.5))
+    setup = WaveSetup(Laminate((Ply(al, 0.0, 1e-3),)), (1.0, 1.0), (0.5, 0.5), FS, 0, (s,), source=src)
+    d = direction_of(setup, WaveSettings(), np.linspace(100e3, 200e3, 20), 0.0, [s])
+    d.t0 = (-2 * CYCLES / F0, -CYCLES / F0)            # the whole burst before sample 0
+    t = np.arange(3000) / FS
+    rec = {"B": 5e-3 * _burst(t, 30e-6)}
+    wl = waves.Wavelet(2.0, 1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        W = waves.cwt(rec["B"], FS, d.freqs, wl)
+        bound = bound_in(d, rec, s, wl, {}, lambda ch: W)
+    assert bound.shape == W.shape and not np.any(bound)
