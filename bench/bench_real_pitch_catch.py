@@ -150,7 +150,8 @@ def main(argv) -> None:
     print("\nresidue of the other mode, measured at D (where its packet arrives alone):")
     for k, r in res.items():
         print(f"  {k}: r = {abs(r.ratio):.3f} at {np.degrees(np.angle(r.ratio)):.1f} deg ({r.level_db:.1f} dB), gate "
-              f"{(r.gate_s[0] - t0) * 1e6:.1f}-{(r.gate_s[1] - t0) * 1e6:.1f} us, moves {100 * r.spread:.1f} % with the gate"
+              f"{(r.gate_s[0] - t0) * 1e6:.1f}-{(r.gate_s[1] - t0) * 1e6:.1f} us, "
+              f"moves {100 * r.spread:.1f} % with the gate"
               + ("" if r.spread <= MAX_SPREAD else "  REFUSED (not alone in the gate)"))
     runs = {"A alone": (rec["CH0CH1"], rec["CH0CH2"], None),
             "S: (A + C) / 2": (*sym, "symmetric"),
@@ -178,7 +179,8 @@ def main(argv) -> None:
     for m in ("S0", "A0"):
         for k, curve in est[m].items():
             print(f"  {m} {k}: " + ", ".join(f"{v:.0f} ({c / 1e3:.0f})" for v, c in curve))
-        print(f"  {m} Rayleigh-Lamb, generic Al, at " + ", ".join(f"{fi / 1e3:.0f} kHz {v:.0f}" for fi, v in zip(f, ref[m])))
+        print(f"  {m} Rayleigh-Lamb, generic Al, at "
+              + ", ".join(f"{fi / 1e3:.0f} kHz {v:.0f}" for fi, v in zip(f, ref[m])))
     rig_text = (HERE / "yeum_rig.toml").read_text()
     for spec in ("yeum_al_nominal_off.toml", "yeum_al_nominal_high.toml"):
         print(f"\n=== nominal {spec}")
