@@ -90,15 +90,19 @@ def dispersion_from_model(model: SafeModel, frequency_hz, *, labels: tuple[str, 
         if red is None:
             continue
         br = cheb_branches(red, nb)
+        slow = [r for r in rs if not br.converged[r["j"]]]
+        if slow:    # series not converged (sharp veering): eigen-solves per frequency, one call
+            js = np.repeat([r["j"] for r in slow], len(w))
+            k_s, cg_s, _ = solve_branches(red, np.tile(w, len(slow)), js)
+            for i, r in enumerate(slow):
+                sl = slice(i * len(w), (i + 1) * len(w))
+                results[r["label"]] = (k_s[sl], cg_s[sl], r["cutoff"])
         for r in rs:
-            j = r["j"]
-            if br.converged[j]:
-                k, dl = roots_from_series(br, w, j)
+            if br.converged[r["j"]]:
+                k, dl = roots_from_series(br, w, r["j"])
                 with np.errstate(invalid="ignore", divide="ignore"):
                     cg = dl / (2.0 * w)
-            else:   # series not converged (sharp veering): one eigen-solve per frequency
-                k, cg, _ = solve_branches(red, w, np.full(len(w), j))
-            results[r["label"]] = (k, cg, r["cutoff"])
+                results[r["label"]] = (k, cg, r["cutoff"])
     for r in rows:
         if r["label"] not in results:
             continue

@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
-import scipy.linalg as sla
 from numpy.polynomial import legendre as npleg
 
 from ..laminate import Laminate, stiffness_3d
@@ -296,7 +295,7 @@ def safe_model(laminate: Laminate, direction_deg: float = 0.0, *, order: int | N
     for kind, Q, n_rigid in found:
         Mc = Q.T @ M @ Q
         L = np.linalg.cholesky(Mc)
-        Li = sla.solve_triangular(L, np.eye(L.shape[0]), lower=True)   # L^-1
+        Li = np.linalg.solve(L, np.eye(L.shape[0]))   # L^-1 (numpy: no scipy import on this path)
 
         def std(X):
             Y = Li @ (Q.T @ X @ Q) @ Li.T
