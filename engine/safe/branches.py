@@ -190,19 +190,24 @@ def _eig_derivatives(red: Reduced, k: np.ndarray, j: np.ndarray):
 
 
 def solve_branches(red: Reduced, omega: np.ndarray, branches: np.ndarray, n_grid: int = 64,
-                    tol: float = 1e-9, max_iter: int = 6):
+                    tol: float = 1e-9, max_iter: int = 6, grid: tuple | None = None):
     """Wavenumber of branch j at each omega (largest root). Returns k, cg, y (reduced vectors).
 
     ``omega`` and ``branches`` are paired 1D arrays. A Hermite (value +
     eigenvector slope) interpolant on a k-grid gives the start; each pair then
     needs one eigen-solve: a second-order step with lambda'' from perturbation
     theory, repeated only where the step is not negligible. NaN where the
-    branch does not reach omega.
+    branch does not reach omega. ``grid`` = (k ascending, lambda, slope), the
+    branches' samples at hand (``Branches.nodes``), replaces the n_grid-point
+    grid's eigen-solves (the start only: the roots move by round-off).
     """
-    kg = np.linspace(0.0, red.kmax, n_grid)
-    lam, vec = _batched_eig(red, kg)
-    Ap = red.a1[None] + 2 * kg[:, None, None] * red.a2[None]
-    dl = np.sum(vec * (Ap @ vec), axis=1)     # matmul: the 3-operand einsum cost ~10x more
+    if grid is not None:
+        kg, lam, dl = grid
+    else:
+        kg = np.linspace(0.0, red.kmax, n_grid)
+        lam, vec = _batched_eig(red, kg)
+        Ap = red.a1[None] + 2 * kg[:, None, None] * red.a2[None]
+        dl = np.sum(vec * (Ap @ vec), axis=1)     # matmul: the 3-operand einsum cost ~10x more
     w2 = omega ** 2
     k = np.full(omega.shape, np.nan)
     for j in sorted(set(branches.tolist())):     # not np.unique: it imports numpy.ma (~0.07 s CPU)
@@ -260,6 +265,7 @@ class Branches:
     dlam: np.ndarray          # (n+1, nb)
     converged: np.ndarray     # (nb,) bool: tail below tolerance
     extra: dict
+    nodes: tuple | None = None   # (k ascending, lambda, slope) at the sampled nodes (eigenvector runs)
 
 
 def dct1(v: np.ndarray) -> np.ndarray:
@@ -339,7 +345,12 @@ def cheb_branches(red: Reduced, nb: int, n0: int = 32, n_max: int = 256, tol: fl
         return Branches(kmax, coeffs[0], dl, conv, extra)
     if probes is not None:
         extra = {"prod": coeffs[2]}
-    return Branches(kmax, coeffs[0], coeffs[1], conv, extra)
+    return Branches(kmax, coeffs[0], coeffs[1], conv, extra, (_lobatto_k(kmax, n), vals[0], vals[1]))
+
+
+def _lobatto_k(kmax: float, n: int) -> np.ndarray:
+    """The n + 1 Chebyshev-Lobatto wavenumbers of a series on [0, kmax], ascending."""
+    return kmax * (1.0 - np.cos(np.pi * np.arange(n + 1) / n)) / 2.0
 
 
 def _sample(red: Reduced, ks: np.ndarray, nb: int, probes=None, values_only: bool = False):

@@ -93,7 +93,7 @@ def dispersion_from_model(model: SafeModel, frequency_hz, *, labels: tuple[str, 
         slow = [r for r in rs if not br.converged[r["j"]]]
         if slow:    # series not converged (sharp veering): eigen-solves per frequency, one call
             js = np.repeat([r["j"] for r in slow], len(w))
-            k_s, cg_s, _ = solve_branches(red, np.tile(w, len(slow)), js)
+            k_s, cg_s, _ = solve_branches(red, np.tile(w, len(slow)), js, grid=br.nodes)
             for i, r in enumerate(slow):
                 sl = slice(i * len(w), (i + 1) * len(w))
                 results[r["label"]] = (k_s[sl], cg_s[sl], r["cutoff"])
