@@ -41,7 +41,7 @@ from numpy.polynomial import legendre as npleg
 from ..laminate import Laminate, stiffness_3d
 
 __all__ = ["TWO_PI", "SafeError", "DofClass", "SafeModel", "safe_model", "default_discretisation",
-           "ply_stiffness", "bond_matrix", "class_bases", "coupling"]
+           "ply_stiffness", "bond_matrix", "class_bases", "coupling", "matrix_derivatives"]
 
 TWO_PI = 2.0 * np.pi
 
@@ -172,8 +172,13 @@ def _kron(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     return (A[:, None, :, None] * B[None, :, None, :]).reshape(n * m, n * m)
 
 
-def _assemble(laminate: Laminate, direction_deg: float, order: int, epp: int):
-    Cs = ply_stiffness(laminate, direction_deg)
+def _assemble(laminate: Laminate, direction_deg: float, order: int, epp: int, Cs=None, rhos=None):
+    """z nodes, K0, K1~, K2, M; ``Cs`` (per ply, propagation axes) and ``rhos`` replace the plies'
+    stiffness and density (the matrices are linear in both: derivatives assemble the same way)."""
+    if Cs is None:
+        Cs = ply_stiffness(laminate, direction_deg)
+    if rhos is None:
+        rhos = [ply.material.density for ply in laminate.plies]
     xi, Mref, Sref, Gref = _reference_element(order)
     n_el = len(laminate.plies) * epp
     n_nodes = n_el * order + 1
@@ -190,7 +195,7 @@ def _assemble(laminate: Laminate, direction_deg: float, order: int, epp: int):
         k0 = _kron(Sref / J, Czz)
         k2 = _kron(J * Mref, Cxx)
         k1 = _kron(Gref, Czx) - _kron(Gref.T, Czx.T)
-        m = _kron(ply.material.density * J * Mref, I3)
+        m = _kron(rhos[ip] * J * Mref, I3)
         for s in range(epp):
             z0 = zi[ip] + s * he
             n0 = e * order
@@ -204,6 +209,18 @@ def _assemble(laminate: Laminate, direction_deg: float, order: int, epp: int):
     if np.max(np.abs(K1t.imag)) > 1e-12 * max(np.max(np.abs(K1t.real)), 1e-300):
         raise SafeError("ply stiffness is not monoclinic about z; SAFE scaling w -> i w fails")
     return z, K0, K1t.real.copy(), K2, M
+
+
+def matrix_derivatives(model: SafeModel, laminate: Laminate, dC: list, drho: list):
+    """d(K0, K1~, K2, M)/dp of ``model`` (assembled from ``laminate``) for ply stiffness
+    derivatives ``dC`` (6x6 per ply, material axes, Pa per unit p) and densities ``drho``."""
+    dCs = []
+    for ply, d in zip(laminate.plies, dC):
+        B = bond_matrix(ply.angle_deg - model.direction_deg)
+        dCs.append(B @ d @ B.T)
+    _, K0, K1, K2, M = _assemble(laminate, model.direction_deg, model.order, model.elements_per_ply,
+                                 dCs, list(drho))
+    return K0, K1, K2, M
 
 
 def coupling(X: np.ndarray, Qa: np.ndarray, Qb: np.ndarray) -> float:
