@@ -66,25 +66,26 @@ _REL_STEP = 1e-6
 def ply_derivatives(laminate: Laminate, params: Mapping[str, float], names, material: str | None = None
                     ) -> list[tuple[list[np.ndarray], list[float]]]:
     """Per name: (d C / dp for each ply (6x6, material axes, Pa per unit), d rho / dp per ply) of
-    ``laminate.with_params(params, material)``, by central differences through ``with_params``
-    itself (so every parameterisation -- isotropic E with nu or G held, derived nu23 -- is the one
-    the predictions use)."""
+    ``laminate.with_params(params, material)``, by central differences of the material's own
+    ``with_params`` (what ``Laminate.with_params`` calls: every parameterisation -- isotropic E
+    with nu or G held, a derived nu23 -- is the one the predictions use)."""
+    mats = laminate.materials
+    if material is None:
+        if len(mats) != 1:
+            raise KeyError(f"laminate has materials {sorted(mats)}; name the one to update")
+        material = next(iter(mats))
+    base = mats[material]
+    on = [p.material.name == material for p in laminate.plies]
+    zero = np.zeros((6, 6))
     out = []
     for n in names:
         p0 = float(params[n])
         h = _REL_STEP * abs(p0)
-        hi = laminate.with_params({**params, n: p0 + h}, material).plies
-        lo = laminate.with_params({**params, n: p0 - h}, material).plies
-        memo: dict = {}
-
-        def d(a, b):
-            if id(a) not in memo:
-                memo[id(a)] = (stiffness_3d(a) - stiffness_3d(b)) / (2.0 * h)
-            return memo[id(a)]
-        dC = [d(a.material, b.material) if a.material is not b.material else np.zeros((6, 6))
-              for a, b in zip(hi, lo)]
-        drho = [(a.material.density - b.material.density) / (2.0 * h) for a, b in zip(hi, lo)]
-        out.append((dC, drho))
+        hi = base.with_params(**{**params, n: p0 + h})
+        lo = base.with_params(**{**params, n: p0 - h})
+        dC = (stiffness_3d(hi) - stiffness_3d(lo)) / (2.0 * h)
+        drho = (hi.density - lo.density) / (2.0 * h)
+        out.append(([dC if o else zero for o in on], [drho if o else 0.0 for o in on]))
     return out
 
 

@@ -13,7 +13,7 @@ import numpy as np
 from ..laminate import Laminate
 from .branches import cheb_branches, reduce_class, roots_from_series, solve_branches
 from .labels import FUND_ORDER, branch_table, fundamental_rows
-from .model import TWO_PI, SafeError, SafeModel, matrix_derivatives, safe_model
+from .model import TWO_PI, SafeError, SafeModel, projected_derivatives, safe_model
 
 __all__ = ["ModeCurve", "Dispersion", "dispersion", "dispersion_from_model", "group_velocity",
            "group_velocity_jacobian"]
@@ -195,15 +195,14 @@ def group_velocity_jacobian(laminate: Laminate, frequency_hz, derivatives: Seque
         inv = 1.0 / gap
     lkk = 2 * np.einsum("nr,rs,ns->n", y, red.a2, y) + 2 * np.sum(P * P * inv, axis=1)
     T = model.classes[ci].to_phys @ red.basis               # (ndof, r), M-orthonormal
-    for i, (dC, drho) in enumerate(derivatives):
-        dK0, dK1, dK2, dM = matrix_derivatives(model, laminate, dC, drho)
-        d0, d1, d2, dm = (T.T @ X @ T for X in (dK0, dK1, dK2, dM))
-        Gy = (y @ d0 + kk[:, None] * (y @ d1) + (kk * kk)[:, None] * (y @ d2)
-              - lj[:, None] * (y @ dm))                      # G y (symmetric matrices)
+    d0, d1, d2, dm = projected_derivatives(model, laminate, derivatives, T)
+    for i in range(len(derivatives)):
+        Gy = (y @ d0[i] + kk[:, None] * (y @ d1[i]) + (kk * kk)[:, None] * (y @ d2[i])
+              - lj[:, None] * (y @ dm[i]))                   # G y (symmetric matrices)
         g = np.einsum("nrm,nr->nm", Y, Gy)                  # y_m^T G y
         lp = g[:, j]
-        ymy = np.sum((y @ dm) * y, axis=1)
-        lkp = (np.sum((y @ d1 + 2 * kk[:, None] * (y @ d2)) * y, axis=1)
+        ymy = np.sum((y @ dm[i]) * y, axis=1)
+        lkp = (np.sum((y @ d1[i] + 2 * kk[:, None] * (y @ d2[i])) * y, axis=1)
                + 2 * np.sum(g * P * inv, axis=1) - lk * ymy)
         dk = -lp / lk
         jac[ok, i] = (lkk * dk + lkp) / (2.0 * ww)
