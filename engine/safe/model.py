@@ -278,8 +278,9 @@ def _structure(laminate: Laminate, Cs: list, z: np.ndarray, tol: float = 1e-12) 
     h = z[-1] - z[0]
     plies = laminate.plies
     n = len(plies)
+    # np.max(|a - b|) <= atol is np.allclose(a, b, rtol=0, atol) without its ~0.2 ms per call
     parity = bool(np.allclose(z, -z[::-1], atol=1e-9 * h)) and all(
-        np.allclose(Cs[i], Cs[n - 1 - i], rtol=0.0, atol=tol * scale)
+        float(np.max(np.abs(Cs[i] - Cs[n - 1 - i]))) <= tol * scale
         and plies[i].material.density == plies[n - 1 - i].material.density
         for i in range(n // 2))
     return parity, sh
@@ -343,8 +344,9 @@ def safe_model(laminate: Laminate, direction_deg: float = 0.0, *, order: int | N
     epp = e0 if elements_per_ply is None else int(elements_per_ply)
     if order < 1 or epp < 1:
         raise SafeError(f"order={order}, elements_per_ply={epp}: expected integers >= 1")
-    z, K0, K1, K2, M = _assemble(laminate, float(direction_deg), order, epp)
-    parity, sh = _structure(laminate, ply_stiffness(laminate, float(direction_deg)), z)
+    Cs = ply_stiffness(laminate, float(direction_deg))
+    z, K0, K1, K2, M = _assemble(laminate, float(direction_deg), order, epp, Cs)
+    parity, sh = _structure(laminate, Cs, z)
     found = class_bases(z, parity, sh)
     classes = []
     for kind, Q, n_rigid in found:
