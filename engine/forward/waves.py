@@ -17,7 +17,7 @@ import numpy as np
 
 from ..fit import DataBlock
 from ..laminate import Laminate, stiffness_3d
-from ..safe import dispersion, group_velocity as safe_group_velocity, group_velocity_jacobian
+from ..safe import dispersion, group_velocity as safe_group_velocity, group_velocity_jacobian, mode_solution
 from .memo import method_lru
 
 __all__ = ["wave_block", "SafeWaves", "ply_derivatives"]
@@ -37,6 +37,8 @@ def wave_block(laminate: Laminate, frequency_hz, group_velocity_m_s, sigma_m_s, 
     if group_velocity is None:
         group_velocity = safe_group_velocity
     f = np.asarray(frequency_hz, float)
+    last: dict = {}       # the last constants' mode solution: the estimator asks for the Jacobian
+                          # where it has just predicted (one SAFE solve, not two)
 
     def at(params: Mapping[str, float]) -> Laminate:
         lam = laminate.with_params(dict(params), material) if params else laminate
@@ -44,14 +46,25 @@ def wave_block(laminate: Laminate, frequency_hz, group_velocity_m_s, sigma_m_s, 
             m.check()
         return lam
 
+    def solved(params: Mapping[str, float]):
+        key = tuple(sorted(dict(params).items()))
+        if key not in last:
+            lam = at(params)
+            sol = mode_solution(lam, f, mode, direction_deg)
+            last.clear()
+            last[key] = (lam, sol)
+        return last[key]
+
     def predict(params: Mapping[str, float]) -> np.ndarray:
+        if analytic:
+            return np.array(solved(params)[1].group_velocity_m_s, float)     # a copy: the memo keeps its own
         return np.asarray(group_velocity(at(params), f, mode=mode, direction_deg=direction_deg), float)
 
     def jacobian(params: Mapping[str, float], names) -> tuple[np.ndarray, np.ndarray]:
-        lam = at(params)
+        lam, sol = solved(params)
         cg, jac = group_velocity_jacobian(lam, f, ply_derivatives(laminate, params, names, material),
-                                          mode=mode, direction_deg=direction_deg)
-        return np.asarray(cg, float), jac
+                                          mode=mode, direction_deg=direction_deg, solution=sol)
+        return np.asarray(cg, float).copy(), jac
 
     return DataBlock(name or f"waves:{mode}@{direction_deg:g}deg", group_velocity_m_s, sigma_m_s,
                      predict, jacobian if analytic else None, kind="waves")

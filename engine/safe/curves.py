@@ -16,7 +16,7 @@ from .labels import FUND_ORDER, branch_table, fundamental_rows
 from .model import TWO_PI, SafeError, SafeModel, projected_derivatives, safe_model
 
 __all__ = ["ModeCurve", "Dispersion", "dispersion", "dispersion_from_model", "group_velocity",
-           "group_velocity_jacobian"]
+           "group_velocity_jacobian", "ModeSolution", "mode_solution"]
 
 
 @dataclass(frozen=True)
@@ -149,9 +149,37 @@ def group_velocity(laminate: Laminate, frequency_hz, mode: str = "A0",
     return dispersion_from_model(model, f, labels=(mode,)).mode(mode).group_velocity_m_s
 
 
+@dataclass(frozen=True, eq=False)
+class ModeSolution:
+    """One mode's roots on a frequency grid with what its derivatives need (the assembled
+    model, the reduced class model, class and branch index). ``group_velocity_m_s`` is
+    :func:`group_velocity`'s, bit for bit."""
+
+    frequency_hz: np.ndarray
+    wavenumber_rad_m: np.ndarray
+    group_velocity_m_s: np.ndarray
+    model: SafeModel
+    reduced: object
+    class_index: int
+    branch: int
+
+
+def mode_solution(laminate: Laminate, frequency_hz, mode: str = "A0", direction_deg: float = 0.0, *,
+                  order: int | None = None, elements_per_ply: int | None = None) -> ModeSolution:
+    """Solve one mode (the :func:`group_velocity` path) and keep what its Jacobian needs."""
+    f = _check_freq(frequency_hz)
+    model = _model_for(laminate, float(np.max(f)), direction_deg, order, elements_per_ply)
+    _, results = _solve_rows(model, TWO_PI * f, (mode,))
+    if mode not in results:
+        raise SafeError(f"mode {mode!r}: no branch below {np.max(f):g} Hz")
+    k, cg, _, red, ci, j = results[mode]
+    return ModeSolution(f, k, cg, model, red, ci, j)
+
+
 def group_velocity_jacobian(laminate: Laminate, frequency_hz, derivatives: Sequence[tuple],
                             mode: str = "A0", direction_deg: float = 0.0, *,
-                            order: int | None = None, elements_per_ply: int | None = None):
+                            order: int | None = None, elements_per_ply: int | None = None,
+                            solution: ModeSolution | None = None):
     """(c_g (n,), dc_g/dp (n, len(derivatives))) of ``mode`` on the frequencies (Hz).
 
     ``derivatives``: per parameter p, ``(dC, drho)``: for each ply the derivative of its 3D
@@ -169,14 +197,13 @@ def group_velocity_jacobian(laminate: Laminate, frequency_hz, derivatives: Seque
     projected on T. One SAFE solve, one reduced eigen-solve per frequency and one assembly per
     parameter instead of a SAFE solve per parameter; equal to central differences of
     :func:`group_velocity` to ~1e-7 relative (tests/unit/engine/test_safe_sensitivity.py).
+    ``solution``: this laminate's :func:`mode_solution` on these frequencies, if at hand.
     """
-    f = _check_freq(frequency_hz)
+    sol = solution if solution is not None else mode_solution(
+        laminate, frequency_hz, mode, direction_deg, order=order, elements_per_ply=elements_per_ply)
+    f, k, cg = sol.frequency_hz, sol.wavenumber_rad_m, sol.group_velocity_m_s
+    model, red, ci, j = sol.model, sol.reduced, sol.class_index, sol.branch
     w = TWO_PI * f
-    model = _model_for(laminate, float(np.max(f)), direction_deg, order, elements_per_ply)
-    _, results = _solve_rows(model, w, (mode,))
-    if mode not in results:
-        raise SafeError(f"mode {mode!r}: no branch below {np.max(f):g} Hz")
-    k, cg, _, red, ci, j = results[mode]
     jac = np.full((len(f), len(derivatives)), np.nan)
     ok = np.isfinite(k) & np.isfinite(cg)
     if not ok.any() or not len(derivatives):
