@@ -64,6 +64,9 @@ def wave_block(laminate: Laminate, frequency_hz, group_velocity_m_s, sigma_m_s, 
         lam, sol = solved(params)
         cg, jac = group_velocity_jacobian(lam, f, ply_derivatives(laminate, params, names, material),
                                           mode=mode, direction_deg=direction_deg, solution=sol)
+        if not (np.all(np.isfinite(cg)) and np.all(np.isfinite(jac))):
+            # as the estimator's own check of predictions: unphysical here, shorten the step
+            raise ValueError(f"waves {mode}@{direction_deg:g}deg: no root at some frequencies")
         return np.asarray(cg, float).copy(), jac
 
     return DataBlock(name or f"waves:{mode}@{direction_deg:g}deg", group_velocity_m_s, sigma_m_s,
@@ -93,7 +96,7 @@ def ply_derivatives(laminate: Laminate, params: Mapping[str, float], names, mate
     out = []
     for n in names:
         p0 = float(params[n])
-        h = _REL_STEP * abs(p0)
+        h = _REL_STEP * abs(p0) or _REL_STEP
         hi = base.with_params(**{**params, n: p0 + h})
         lo = base.with_params(**{**params, n: p0 - h})
         dC = (stiffness_3d(hi) - stiffness_3d(lo)) / (2.0 * h)

@@ -64,3 +64,19 @@ def test_stiffness_and_density_scaling_law():
 def test_custom_group_velocity_keeps_differences():
     blk = wave_block(LAM, F, np.ones(3), np.ones(3), group_velocity=lambda lam, f, **kw: np.ones(len(f)))
     assert blk.jacobian is None
+
+
+def test_jacobian_without_a_root_is_unphysical(monkeypatch):
+    """Where the mode has no root the block says ValueError (the estimators shorten the step),
+    as the estimator's own check of predictions does: no NaN reaches the fit."""
+    import engine.forward.waves as fw
+    real = fw.group_velocity_jacobian
+
+    def no_root_at_the_second(*a, **k):
+        cg, jac = real(*a, **k)
+        jac[1] = np.nan
+        return cg, jac
+    monkeypatch.setattr(fw, "group_velocity_jacobian", no_root_at_the_second)
+    blk = wave_block(LAM, F, np.ones(3), np.ones(3))
+    with pytest.raises(ValueError, match="no root"):
+        blk.jacobian(P0, NAMES)
