@@ -55,7 +55,7 @@ def _eig_at(cls: DofClass, k: float, n: int | None = None, vectors: bool = True)
     numpy's full ``eigh`` (LAPACK syevd) and a slice, not scipy's subset driver: importing
     scipy.linalg is ~0.25 s CPU of ``labid dispersion``'s ~0.6 s, and the curves move by
     round-off only (bench/RESULTS.md, issue 29 session 26: against the exact Rayleigh-Lamb
-    roots the same error above 5 kHz, within 3x either way at the round-off floor below)."""
+    roots errors of the same size, within a factor 3 either way at the round-off floor)."""
     A = cls.A0 + k * cls.A1 + (k * k) * cls.A2
     if not vectors:
         lam = np.linalg.eigvalsh(A)
