@@ -34,13 +34,13 @@ RUNS = {
     "analyze": "from labid import services\nservices.run_analysis, services.features_path",
     "report": "from labid import services\nservices.open_run, services.read_result, services.run_calibration\n"
               "import labid.store",
-    "dispersion": "",
+    "dispersion": "import engine.safe.curves",
     "modes": "",
 }
 #: packages whose presence the table shows (the ones the facade used to load for every command)
 HEAVY = ("mock_hw", "labid.workflows.analysis", "labid.workflows.plan", "labid.workflows.acquisition",
          "labid.io", "labid.display", "h5py", "engine.modal", "engine.wavefeatures", "pywt", "tomlkit",
-         "scipy.optimize", "scipy.signal", "scipy.stats")
+         "scipy.optimize", "scipy.signal", "scipy.stats", "scipy.linalg")
 
 CODE = """import time, sys, json
 t = time.process_time()

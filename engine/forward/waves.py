@@ -1,7 +1,8 @@
 """Guided-wave group velocities predicted by the SAFE model of the laminate.
 
 * :func:`wave_block` -- the group-velocity :class:`~engine.fit.DataBlock` of
-  the estimators (Jacobian by forward differences in the estimator).
+  the estimators (analytic Jacobian: ``engine.safe.group_velocity_jacobian``);
+* :func:`ply_derivatives` -- derivatives of the plies' stiffness and density in the constants.
 * :class:`SafeWaves` -- group and phase velocities of one laminate for given
   constants and a relative thickness error, memoised per input (the gap's
   forward model evaluates the same points many times).
@@ -15,11 +16,11 @@ from typing import Mapping
 import numpy as np
 
 from ..fit import DataBlock
-from ..laminate import Laminate
-from ..safe import dispersion, group_velocity as safe_group_velocity
+from ..laminate import Laminate, stiffness_3d
+from ..safe import dispersion, group_velocity as safe_group_velocity, group_velocity_jacobian, mode_solution
 from .memo import method_lru
 
-__all__ = ["wave_block", "SafeWaves"]
+__all__ = ["wave_block", "SafeWaves", "ply_derivatives"]
 
 
 def wave_block(laminate: Laminate, frequency_hz, group_velocity_m_s, sigma_m_s, *,
@@ -27,20 +28,81 @@ def wave_block(laminate: Laminate, frequency_hz, group_velocity_m_s, sigma_m_s, 
                name: str | None = None, group_velocity=None) -> DataBlock:
     """Group-velocity data block (m/s) predicted by the SAFE model of ``laminate``.
 
-    ``group_velocity`` defaults to ``engine.safe.group_velocity``.
+    ``group_velocity`` defaults to ``engine.safe.group_velocity``; then the block's Jacobian is
+    analytic (``engine.safe.group_velocity_jacobian``: one SAFE solve per evaluation instead of
+    1 + n_params for the estimator's forward differences). A custom ``group_velocity`` keeps
+    the differences.
     """
+    analytic = group_velocity is None
     if group_velocity is None:
         group_velocity = safe_group_velocity
     f = np.asarray(frequency_hz, float)
+    last: dict = {}       # the last constants' mode solution: the estimator asks for the Jacobian
+                          # where it has just predicted (one SAFE solve, not two)
 
-    def predict(params: Mapping[str, float]) -> np.ndarray:
+    def at(params: Mapping[str, float]) -> Laminate:
         lam = laminate.with_params(dict(params), material) if params else laminate
         for m in lam.materials.values():
             m.check()
-        return np.asarray(group_velocity(lam, f, mode=mode, direction_deg=direction_deg), float)
+        return lam
+
+    def solved(params: Mapping[str, float]):
+        key = tuple(sorted(dict(params).items()))
+        if key not in last:
+            lam = at(params)
+            sol = mode_solution(lam, f, mode, direction_deg)
+            last.clear()
+            last[key] = (lam, sol)
+        return last[key]
+
+    def predict(params: Mapping[str, float]) -> np.ndarray:
+        if analytic:
+            return np.array(solved(params)[1].group_velocity_m_s, float)     # a copy: the memo keeps its own
+        return np.asarray(group_velocity(at(params), f, mode=mode, direction_deg=direction_deg), float)
+
+    def jacobian(params: Mapping[str, float], names) -> tuple[np.ndarray, np.ndarray]:
+        lam, sol = solved(params)
+        cg, jac = group_velocity_jacobian(lam, f, ply_derivatives(laminate, params, names, material),
+                                          mode=mode, direction_deg=direction_deg, solution=sol)
+        if not (np.all(np.isfinite(cg)) and np.all(np.isfinite(jac))):
+            # as the estimator's own check of predictions: unphysical here, shorten the step
+            raise ValueError(f"waves {mode}@{direction_deg:g}deg: no root at some frequencies")
+        return np.asarray(cg, float).copy(), jac
 
     return DataBlock(name or f"waves:{mode}@{direction_deg:g}deg", group_velocity_m_s, sigma_m_s,
-                     predict, None, kind="waves")
+                     predict, jacobian if analytic else None, kind="waves")
+
+
+#: relative step of the central difference of a ply's 3D stiffness in one constant: C(p) is a
+#: rational function of the constants (the inverse of the compliance), so the truncation is
+#: ~(1e-6)^2 and the round-off ~1e-16 / 1e-6 = 1e-10 relative
+_REL_STEP = 1e-6
+
+
+def ply_derivatives(laminate: Laminate, params: Mapping[str, float], names, material: str | None = None
+                    ) -> list[tuple[list[np.ndarray], list[float]]]:
+    """Per name: (d C / dp for each ply (6x6, material axes, Pa per unit), d rho / dp per ply) of
+    ``laminate.with_params(params, material)``, by central differences of the material's own
+    ``with_params`` (what ``Laminate.with_params`` calls: every parameterisation -- isotropic E
+    with nu or G held, a derived nu23 -- is the one the predictions use)."""
+    mats = laminate.materials
+    if material is None:
+        if len(mats) != 1:
+            raise KeyError(f"laminate has materials {sorted(mats)}; name the one to update")
+        material = next(iter(mats))
+    base = mats[material]
+    on = [p.material.name == material for p in laminate.plies]
+    zero = np.zeros((6, 6))
+    out = []
+    for n in names:
+        p0 = float(params[n])
+        h = _REL_STEP * abs(p0) or _REL_STEP
+        hi = base.with_params(**{**params, n: p0 + h})
+        lo = base.with_params(**{**params, n: p0 - h})
+        dC = (stiffness_3d(hi) - stiffness_3d(lo)) / (2.0 * h)
+        drho = (hi.density - lo.density) / (2.0 * h)
+        out.append(([dC if o else zero for o in on], [drho if o else 0.0 for o in on]))
+    return out
 
 
 class SafeWaves:

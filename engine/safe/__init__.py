@@ -16,7 +16,8 @@ Modules (each readable alone):
 * :mod:`.transient` -- forced transient response at a sensor (paper Eqs. 23-26).
 
 Public API (re-exported here): ``dispersion``, ``dispersion_from_model``,
-``group_velocity``, ``Dispersion``, ``ModeCurve``, ``safe_model``, ``SafeModel``,
+``group_velocity``, ``group_velocity_jacobian`` (its derivatives in the ply constants), ``mode_solution``,
+``ModeSolution``, ``Dispersion``, ``ModeCurve``, ``safe_model``, ``SafeModel``,
 ``default_discretisation``, ``ply_stiffness``, ``bond_matrix``, ``SafeError``,
 ``ForceHistory``, ``hammer_force``, ``pencil_lead_break``, ``tone_burst``,
 ``mode_transfer``, ``mode_velocities``, ``transient_response``, ``QUANTITIES``.
@@ -40,14 +41,17 @@ its tests and benchmarks; not for other layers): ``model.DofClass``,
 ``model.class_bases``, ``model.coupling``, ``model.TWO_PI``, everything in
 ``branches``, ``labels`` and ``transfer``.
 """
-from .curves import Dispersion, ModeCurve, dispersion, dispersion_from_model, group_velocity
+from .curves import (Dispersion, ModeCurve, ModeSolution, dispersion, dispersion_from_model, group_velocity,
+                     group_velocity_jacobian, mode_solution)
 from .forces import ForceHistory, hammer_force, pencil_lead_break, tone_burst
 from .model import SafeError, SafeModel, bond_matrix, default_discretisation, ply_stiffness, safe_model
 from .transient import QUANTITIES, mode_transfer, mode_velocities, transient_response
 
 __all__ = [
     "ModeCurve", "Dispersion", "SafeModel", "SafeError",
-    "safe_model", "dispersion", "dispersion_from_model", "group_velocity", "default_discretisation",
+    "safe_model", "dispersion", "dispersion_from_model", "group_velocity", "group_velocity_jacobian",
+    "ModeSolution", "mode_solution",
+    "default_discretisation",
     "bond_matrix", "ply_stiffness",
     "ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst",
     "mode_transfer", "mode_velocities", "transient_response", "QUANTITIES",

@@ -39,7 +39,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 from numpy.polynomial import chebyshev as npcheb
 
 from .model import DofClass
@@ -51,11 +50,18 @@ __all__ = ["Reduced", "Branches", "reduce_class", "solve_branches", "cheb_branch
 # ---------------------------------------------------------------------------
 # eigen-solves
 def _eig_at(cls: DofClass, k: float, n: int | None = None, vectors: bool = True):
+    """The n lowest eigenpairs (all if None) of the class at wavenumber k.
+
+    numpy's full ``eigh`` (LAPACK syevd) and a slice, not scipy's subset driver: importing
+    scipy.linalg is ~0.25 s CPU of ``labid dispersion``'s ~0.6 s, and the curves move by
+    round-off only (bench/RESULTS.md, issue 29 session 26: against the exact Rayleigh-Lamb
+    roots errors of the same size, within a factor 3 either way at the round-off floor)."""
     A = cls.A0 + k * cls.A1 + (k * k) * cls.A2
-    if n is None or n >= A.shape[0]:
-        return sla.eigh(A, eigvals_only=not vectors, check_finite=False)
-    return sla.eigh(A, eigvals_only=not vectors, subset_by_index=[0, n - 1],
-                    check_finite=False, driver="evr")
+    if not vectors:
+        lam = np.linalg.eigvalsh(A)
+        return lam if n is None else lam[:n]
+    lam, vec = np.linalg.eigh(A)
+    return (lam, vec) if n is None else (lam[:n], vec[:, :n])
 
 
 def _kmax(cls: DofClass, wmax: float, branch: int = 0) -> float:
@@ -67,8 +73,7 @@ def _kmax(cls: DofClass, wmax: float, branch: int = 0) -> float:
     through it).
     """
     def loglam(k):
-        lam = sla.eigh(cls.A0 + k * cls.A1 + k * k * cls.A2, eigvals_only=True,
-                       subset_by_index=[branch, branch], check_finite=False, driver="evr")[0]
+        lam = np.linalg.eigvalsh(cls.A0 + k * cls.A1 + k * k * cls.A2)[branch]
         return np.log(max(lam, 1e-300))
 
     target = 2.0 * np.log(wmax)
@@ -124,7 +129,7 @@ def reduce_class(cls: DofClass, wmax: float, n_k: int | None = None, extra: int 
     if n_branches is not None and n_branches <= cls.n_rigid:
         n_cut = n_branches                   # zero cut-off branches only: no count needed
     else:
-        lam0 = sla.eigh(cls.A0, eigvals_only=True, check_finite=False)
+        lam0 = np.linalg.eigvalsh(cls.A0)
         lam0[:cls.n_rigid] = 0.0
         n_cut = int(np.sum(lam0 < (1.05 * wmax) ** 2))
     if n_branches is not None:
@@ -173,7 +178,7 @@ def _eig_derivatives(red: Reduced, k: np.ndarray, j: np.ndarray):
     lam, vec = _batched_eig(red, k)
     a = np.arange(len(k))
     y = vec[a, :, j]
-    Ay = np.einsum("ij,pj->pi", red.a1, y) + 2 * k[:, None] * np.einsum("ij,pj->pi", red.a2, y)
+    Ay = y @ red.a1 + 2 * k[:, None] * (y @ red.a2)       # a1, a2 symmetric
     P = np.einsum("pij,pi->pj", vec, Ay)             # Y^T A' y
     lj = lam[a, j]
     d1 = P[a, j]
@@ -185,22 +190,27 @@ def _eig_derivatives(red: Reduced, k: np.ndarray, j: np.ndarray):
 
 
 def solve_branches(red: Reduced, omega: np.ndarray, branches: np.ndarray, n_grid: int = 64,
-                    tol: float = 1e-9, max_iter: int = 6):
+                    tol: float = 1e-9, max_iter: int = 6, grid: tuple | None = None):
     """Wavenumber of branch j at each omega (largest root). Returns k, cg, y (reduced vectors).
 
     ``omega`` and ``branches`` are paired 1D arrays. A Hermite (value +
     eigenvector slope) interpolant on a k-grid gives the start; each pair then
     needs one eigen-solve: a second-order step with lambda'' from perturbation
     theory, repeated only where the step is not negligible. NaN where the
-    branch does not reach omega.
+    branch does not reach omega. ``grid`` = (k ascending, lambda, slope), the
+    branches' samples at hand (``Branches.nodes``), replaces the n_grid-point
+    grid's eigen-solves (the start only: the roots move by round-off).
     """
-    kg = np.linspace(0.0, red.kmax, n_grid)
-    lam, vec = _batched_eig(red, kg)
-    Ap = red.a1[None] + 2 * kg[:, None, None] * red.a2[None]
-    dl = np.einsum("kij,kia,kaj->kj", vec, Ap, vec)
+    if grid is not None:
+        kg, lam, dl = grid
+    else:
+        kg = np.linspace(0.0, red.kmax, n_grid)
+        lam, vec = _batched_eig(red, kg)
+        Ap = red.a1[None] + 2 * kg[:, None, None] * red.a2[None]
+        dl = np.sum(vec * (Ap @ vec), axis=1)     # matmul: the 3-operand einsum cost ~10x more
     w2 = omega ** 2
     k = np.full(omega.shape, np.nan)
-    for j in np.unique(branches):
+    for j in sorted(set(branches.tolist())):     # not np.unique: it imports numpy.ma (~0.07 s CPU)
         sel = np.nonzero(branches == j)[0]
         L, D = lam[:, j], dl[:, j]
         cross = (L[None, :-1] <= w2[sel, None]) & (L[None, 1:] > w2[sel, None])
@@ -255,6 +265,7 @@ class Branches:
     dlam: np.ndarray          # (n+1, nb)
     converged: np.ndarray     # (nb,) bool: tail below tolerance
     extra: dict
+    nodes: tuple | None = None   # (k ascending, lambda, slope) at the sampled nodes (eigenvector runs)
 
 
 def dct1(v: np.ndarray) -> np.ndarray:
@@ -334,7 +345,12 @@ def cheb_branches(red: Reduced, nb: int, n0: int = 32, n_max: int = 256, tol: fl
         return Branches(kmax, coeffs[0], dl, conv, extra)
     if probes is not None:
         extra = {"prod": coeffs[2]}
-    return Branches(kmax, coeffs[0], coeffs[1], conv, extra)
+    return Branches(kmax, coeffs[0], coeffs[1], conv, extra, (_lobatto_k(kmax, n), vals[0], vals[1]))
+
+
+def _lobatto_k(kmax: float, n: int) -> np.ndarray:
+    """The n + 1 Chebyshev-Lobatto wavenumbers of a series on [0, kmax], ascending."""
+    return kmax * (1.0 - np.cos(np.pi * np.arange(n + 1) / n)) / 2.0
 
 
 def _sample(red: Reduced, ks: np.ndarray, nb: int, probes=None, values_only: bool = False):
@@ -343,7 +359,7 @@ def _sample(red: Reduced, ks: np.ndarray, nb: int, probes=None, values_only: boo
         return [np.linalg.eigvalsh(A)[:, :nb]]
     lam, vec = _batched_eig(red, ks)
     y = vec[:, :, :nb]                                       # (K, r, nb)
-    Ay = np.einsum("ij,kjb->kib", red.a1, y) + 2 * ks[:, None, None] * np.einsum("ij,kjb->kib", red.a2, y)
+    Ay = red.a1 @ y + 2 * ks[:, None, None] * (red.a2 @ y)   # matmul, not einsum: ~7x faster
     dl = np.einsum("kib,kib->kb", y, Ay)
     out = [lam[:, :nb], dl]
     if probes is not None:

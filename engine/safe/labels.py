@@ -32,7 +32,6 @@ wavenumber root, which has c_g >= 0, is reported.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 
 from .model import TWO_PI, DofClass, SafeModel
 
@@ -68,7 +67,7 @@ def branch_table(model: SafeModel, wmax: float):
     fund = _FUND
     rows = []
     for ci, cls in enumerate(model.classes):
-        lam, vec = sla.eigh(cls.A0, check_finite=False)
+        lam, vec = np.linalg.eigh(cls.A0)
         lam[:cls.n_rigid] = 0.0
         for j in range(len(lam)):
             if j >= cls.n_rigid and lam[j] >= (1.05 * wmax) ** 2:
