@@ -26,6 +26,7 @@ from .field import COEF_POWER, field_data, thickness_weights
 from .mesh import Mesh
 from .sensitivity import coefficient_energies
 from .sparse import Added, Block, Pattern, point_entries
+from .warm import COUNTS
 from .stiffness import material_maps, q_derivatives, q_vector
 
 __all__ = ["Modes", "PlateModel", "natural_frequencies"]
@@ -418,18 +419,16 @@ class PlateModel:
         return lam_m, vec_m
 
     def _eig(self, name, kd, k, sigma, inert, c, n_want, ncv=None):
-        """The block's eigenpairs: warm from this model's last solve of the block when
-        certified (engine.plate.warm; not with added stiffness, whose sign the bound needs),
-        else ARPACK's k; the last block solve is returned again for the very same inputs
-        (arrays shared: callers index, never write). ``LABID_PLATE_WARM=0``: no warm start."""
+        """The block's eigenpairs: the last ones again for the same inputs (arrays shared:
+        callers index, never write); warm from the last solve when certified (engine.plate.warm;
+        not with added stiffness), else ARPACK's k. ``LABID_PLATE_WARM=0``: no warm start."""
         key = (name, c.tobytes(), inert.tobytes(), sigma, k)
-        last = self._warm.get("last")
-        if last is not None and last[0] == key:      # the same solve again (another caller)
-            return last[1], last[2]
+        if self._warm.get("last", (None,))[0] == key:    # the same solve again (another caller)
+            COUNTS["again"] += 1
+            return self._warm["last"][1:]
         start = self._warm.get(name) if os.environ.get("LABID_PLATE_WARM", "1") != "0" else None
-        lam, vec, nxt, how = self._block(name).eig_warm(
-            kd, k, sigma, self.mesh.n_dof, self._block_mass(name, inert), ncv, start, c,
-            name == "all", n_want)
+        lam, vec, nxt, _ = self._block(name).eig_warm(kd, k, sigma, self.mesh.n_dof, self._block_mass(
+            name, inert), ncv, start, c, name == "all", n_want)
         self._warm[name] = None if self._k_add.idx.size else nxt
         self._warm["last"] = (key, lam, vec)
         return lam, vec

@@ -44,8 +44,9 @@ KEEP = 16
 #: after the first residual check, worse than this (relative) -> ARPACK at once: the bound
 #: falls ~20x per added block (demo plate), so ~3 more blocks would be needed, as dear as ARPACK
 GIVE_UP = 1e-7
-#: warm solves returned / warm solves tried and not certified (read by bench/, never reset here)
-COUNTS = {"warm": 0, "failed": 0}
+#: warm solves returned / tried and not certified / the same solve returned again by the model
+#: (read by bench/_count.py, never reset here)
+COUNTS = {"warm": 0, "failed": 0, "again": 0}
 #: relative spread of Ritz values treated as one cluster (degenerate pairs)
 CLUSTER = 1e-3
 _DEBUG = __import__('os').environ.get('WARM_DEBUG') == '1'
