@@ -41,6 +41,9 @@ TOL = 1e-10
 #: Ritz vectors kept beyond the wanted ones for the next start (uncertified; they speed up
 #: the top wanted modes' convergence)
 KEEP = 16
+#: larger relative changes of the stiffness (beta / alpha - 1) go to ARPACK untried: steps of
+#: ~1e-2 in every constant never certified within ROUNDS (bench/bench_warm_solve.py)
+STEP_MAX = 5e-3
 #: after the first residual check, worse than this (relative) -> ARPACK at once: the bound
 #: falls ~20x per added block (demo plate), so ~3 more blocks would be needed, as dear as ARPACK
 GIVE_UP = 1e-7
@@ -118,14 +121,15 @@ def warm_eig(start: WarmStart, lu, M: sp.spmatrix, sigma: float, c: np.ndarray, 
         return None
     alpha, beta = stiffening_bounds(c, start.c, coupled)
     lower = alpha * start.lower            # <= the new (n_want + 1)-th eigenvalue
-    if not lower > (1.0 + 1e-6) * beta * start.lam[n_want - 1]:
-        return None                        # the top wanted mode could cross: not tried
+    if not lower > (1.0 + 1e-6) * beta * start.lam[n_want - 1] or beta > (1.0 + STEP_MAX) * alpha:
+        return None                        # the top wanted mode could cross, or too far: not tried
     theta_out = 1.0 / (lower - sigma)      # every other eigenvalue's theta is below this
     MV = M @ start.vectors
     B = lu.solve(MV)
     MB = M @ B
     KB = MV + sigma * MB
     G, H = B.T @ MB, B.T @ KB
+    prev = np.inf
     for r in range(rounds - 1):
         lam, X = _ritz((G + G.T) / 2, (H + H.T) / 2)
         if lam.size < n_want:
@@ -170,8 +174,12 @@ def warm_eig(start: WarmStart, lu, M: sp.spmatrix, sigma: float, c: np.ndarray, 
             vec = B @ X[:, :k]
             nxt = WarmStart(vec, lam[:k], n_want, lower, np.array(c, float), M)
             return lw, vec[:, :n_want], nxt
-        if r == rounds - 2 or (r == 0 and bound.max() > GIVE_UP):
+        worst = float(bound.max())
+        if r == rounds - 2 or (r == 0 and worst > GIVE_UP):
             return None
+        if r > 0 and worst * (worst / prev) ** (rounds - 2 - r) > tol:
+            return None                    # at this round's rate the last block would not do
+        prev = worst
         todo = bound > tol
         St, Rt = S[:, todo], R[:, todo]
         MS = M @ St
