@@ -52,7 +52,7 @@ GIVE_UP = 1e-7
 COUNTS = {"warm": 0, "failed": 0, "again": 0}
 #: relative spread of Ritz values treated as one cluster (degenerate pairs)
 CLUSTER = 1e-3
-_DEBUG = __import__('os').environ.get('WARM_DEBUG') == '1'
+_DEBUG = False   # per-round prints (development)
 
 
 @dataclass(frozen=True)
