@@ -36,7 +36,7 @@ __all__ = ["COUNTS", "WarmStart", "constitutive", "stiffening_bounds", "warm_eig
 
 #: block solves at most (Y, then one per residual check); after that, ARPACK
 ROUNDS = 4
-#: certified relative bound on every returned eigenvalue (ARPACK's path agrees to ~1e-12)
+#: certified relative bound on every returned eigenvalue (measured <= 7e-11 from ARPACK's path)
 TOL = 1e-10
 #: Ritz vectors kept beyond the wanted ones for the next start (uncertified; they speed up
 #: the top wanted modes' convergence)
@@ -52,7 +52,6 @@ GIVE_UP = 1e-7
 COUNTS = {"warm": 0, "failed": 0, "again": 0}
 #: relative spread of Ritz values treated as one cluster (degenerate pairs)
 CLUSTER = 1e-3
-_DEBUG = False   # per-round prints (development)
 
 
 @dataclass(frozen=True)
@@ -165,10 +164,6 @@ def warm_eig(start: WarmStart, lu, M: sp.spmatrix, sigma: float, c: np.ndarray, 
                 if j < len(groups) - 1:
                     gap = min(gap, theta[g[-1]] - hi[j + 1])
                 bound[g] = e2[j] / gap / theta[g] if gap > 0 else np.inf
-        if _DEBUG:
-            print(f"    round {r}: size {B.shape[1]} ok {ok} groups {len(groups)} "
-                  f"margin {lo[-1]/theta_out-1:.2e} bound max {bound.max():.2e} n_bad {(bound > tol).sum()} "
-                  f"worst {np.argmax(bound)} e_rel max {(np.sqrt(np.diag(EE))/theta)[3:].max():.1e}")
         if ok and np.all(bound <= tol):
             k = min(X.shape[1], n_want + KEEP)
             vec = B @ X[:, :k]
