@@ -51,6 +51,11 @@ class Counts:
         self._wrap(pm.PlateModel, "build", "plate model build")
         self._wrap(sc, "_model_for", "SAFE model (any SAFE call)")
         self._wrap(fw, "safe_group_velocity", "SAFE group velocity (fit blocks)")
+        try:    # the warm block solves (engine/plate/warm.py, session 26); absent in older trees
+            from engine.plate.warm import COUNTS as warm_counts
+        except ImportError:
+            warm_counts = None
+        self._warm = (warm_counts, dict(warm_counts or {}))
         return self
 
     def __exit__(self, *exc) -> None:
@@ -59,7 +64,13 @@ class Counts:
         self._undo.clear()
 
     def snapshot(self) -> dict:
-        return {k: (self.n[k], self.cpu[k]) for k in self.n}
+        out = {k: (self.n[k], self.cpu[k]) for k in self.n}
+        live, start = getattr(self, "_warm", (None, {}))
+        for k, lab in (("warm", "block solves answered warm"), ("failed", "warm tried, not certified"),
+                       ("again", "the same solve again (model memo)")):
+            if live is not None and live.get(k, 0) - start.get(k, 0):
+                out[lab] = (live[k] - start.get(k, 0), 0.0)
+        return out
 
     @staticmethod
     def diff(a: dict, b: dict) -> dict:

@@ -11,6 +11,7 @@ Units SI: m, kg, s, Pa; eigenvalues lambda = omega^2 in rad^2/s^2.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Iterable, Mapping, Sequence
@@ -25,6 +26,7 @@ from .field import COEF_POWER, field_data, thickness_weights
 from .mesh import Mesh
 from .sensitivity import coefficient_energies
 from .sparse import Added, Block, Pattern, point_entries
+from .warm import COUNTS
 from .stiffness import material_maps, q_derivatives, q_vector
 
 __all__ = ["Modes", "PlateModel", "natural_frequencies"]
@@ -83,6 +85,7 @@ class PlateModel:
         self._cache: dict = {} if _cache is None else _cache  # mesh-only data, shared by derived models
         self._mass_memo: dict | None = None  # mass data of the last inertias (see _mass)
         self._mem_memo: dict | None = None   # last membrane solve (see _membrane_modes)
+        self._warm: dict = {}                # block name -> WarmStart of the last solve (see _eig)
         # no added stiffness on the membrane DOFs (the membrane eigenvalue bound needs it)
         fr = np.repeat(np.arange(len(self._pat.indptr) - 1), np.diff(self._pat.indptr)) % NODE_DOF
         self._membrane_k_free = not self._k_add.any_at((fr < 2) & (self._pat.indices % NODE_DOF < 2))
@@ -346,21 +349,19 @@ class PlateModel:
         if n_modes + 6 + _SPARE >= 0.4 * n - 1:
             raise FEError(f"n_modes = {n_modes}: too many for a mesh of {n} DOF")
         if sigma is None:
-            sigma = -1e-3 * self._omega2_scale(c, inert)
+            sigma = -0.1 * self._omega2_scale(c, inert)
         h = self.laminate.thickness
         coupled = (self._add_cross or np.abs(c[6:12]).max() > 1e-10 * np.abs(c[:6]).max() * h
                    or abs(inert[1]) > 1e-10 * inert[0] * h)
         if coupled:
-            lam, vec = self._block("all").eig(kd, None, n_modes + 6 + _SPARE, sigma, n,
-                                              self._block_mass("all", inert))
+            lam, vec = self._eig("all", kd, n_modes + 6 + _SPARE, sigma, inert, c, n_modes + 6)
         else:
             # B = 0, I2 = 0: bending (w0, bx, by) and membrane (u0, v0) decouple;
             # 3 rigid modes each. Membrane modes are usually far above.
             # ncv = k + 13: ~11 % faster than 2k + 1 for 10 CFRP modes (bench/RESULTS.md,
             # Identification), eigenvalues equal to 1e-12
             kb = n_modes + 3 + _SPARE
-            lam, vec = self._block("bending").eig(kd, None, kb, sigma, n, self._block_mass("bending", inert),
-                                                  ncv=max(kb + 13, 20))
+            lam, vec = self._eig("bending", kd, kb, sigma, inert, c, n_modes + 3, ncv=max(kb + 13, 20))
             top = np.sort(lam)[min(3 + n_modes, lam.size) - 1]
             lam_m, vec_m = self._membrane_modes(kd, c, inert, top, sigma, n)
             lam, vec = np.concatenate([lam, lam_m]), np.hstack([vec, vec_m])
@@ -416,6 +417,21 @@ class PlateModel:
             self._mem_memo = {"mass": mass, "A": A_new, "lam_elastic": float(lam_m[order[3]]),
                               "lam_rigid": lam_m[order[:3]], "vec_rigid": vec_m[:, order[:3]]}
         return lam_m, vec_m
+
+    def _eig(self, name, kd, k, sigma, inert, c, n_want, ncv=None):
+        """The block's eigenpairs: the last ones again for the same inputs (arrays shared:
+        callers index, never write); warm from the last solve when certified (engine.plate.warm;
+        not with added stiffness), else ARPACK's k. ``LABID_PLATE_WARM=0``: no warm start."""
+        key = (name, c.tobytes(), inert.tobytes(), sigma, k)
+        if self._warm.get("last", (None,))[0] == key:    # the same solve again (another caller)
+            COUNTS["again"] += 1
+            return self._warm["last"][1:]
+        start = self._warm.get(name) if os.environ.get("LABID_PLATE_WARM", "1") != "0" else None
+        lam, vec, nxt, _ = self._block(name).eig_warm(kd, k, sigma, self.mesh.n_dof, self._block_mass(
+            name, inert), ncv, start, c, name == "all", n_want)
+        self._warm[name] = None if self._k_add.idx.size else nxt
+        self._warm["last"] = (key, lam, vec)
+        return lam, vec
 
     def _block(self, name: str) -> Block:
         key = "block_" + name

@@ -29,6 +29,7 @@ import scipy.sparse.linalg as spla
 
 from .element import NODE_DOF, combo_scales, shape_2d
 from .mesh import Mesh
+from .warm import COUNTS, WarmStart, warm_eig
 
 __all__ = ["Pattern", "Block", "point_entries", "Added"]
 
@@ -121,26 +122,58 @@ class Block:
         mb = md[self.k_pos]
         return mb, sp.csr_matrix((mb[self.m_sel], self.indices[self.m_sel], self.m_indptr), shape=(nb, nb))
 
+    def factor(self, kd: np.ndarray, mb: np.ndarray, sigma: float):
+        """SuperLU of the block's K - sigma M (K data ``kd`` on the full pattern, ``mb``
+        the block mass data)."""
+        nb = self.dofs.size
+        # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
+        A = sp.csc_matrix((kd[self.k_pos] - sigma * mb, self.indices, self.indptr), shape=(nb, nb))
+        return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                         options={"SymmetricMode": True})
+
     def eig(self, kd: np.ndarray, md: np.ndarray, k: int, sigma: float, n_full: int,
-            mass: tuple[np.ndarray, sp.csr_matrix] | None = None, ncv: int | None = None):
+            mass: tuple[np.ndarray, sp.csr_matrix] | None = None, ncv: int | None = None, lu=None):
         """k eigenpairs nearest sigma (shift-invert), vectors expanded to n_full DOFs.
 
         ``mass``: ``self.mass(md)`` when already known (M depends on density only);
-        ``ncv``: Lanczos basis size (default max(2k + 1, 20))."""
+        ``ncv``: Lanczos basis size (default max(2k + 1, 20)); ``lu``: ``self.factor``'s."""
         nb = self.dofs.size
         mb, M = self.mass(md) if mass is None else mass
-        kb = kd[self.k_pos]
-        # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
-        A = sp.csc_matrix((kb - sigma * mb, self.indices, self.indptr), shape=(nb, nb))
-        lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
+        lu = self.factor(kd, mb, sigma) if lu is None else lu
         op = spla.LinearOperator((nb, nb), matvec=lu.solve, dtype=float)
         v0 = np.random.default_rng(20120101).standard_normal(nb)  # reproducible
-        lam, vec = spla.eigsh(A, k=k, M=M, sigma=sigma, OPinv=op, which="LM", v0=v0,
+        # A itself is not used by eigsh when OPinv is given (only its shape and dtype)
+        lam, vec = spla.eigsh(op, k=k, M=M, sigma=sigma, OPinv=op, which="LM", v0=v0,
                               ncv=min(nb - 1, ncv or max(2 * k + 1, 20)), tol=1e-10)
-        full = np.zeros((n_full, k))
+        return lam, self.expand(vec, n_full)
+
+    def expand(self, vec: np.ndarray, n_full: int) -> np.ndarray:
+        """Block vectors (n_block, k) as full vectors (n_full, k), zero outside the block."""
+        full = np.zeros((n_full, vec.shape[1]))
         full[self.dofs] = vec
-        return lam, full
+        return full
+
+    def eig_warm(self, kd: np.ndarray, k: int, sigma: float, n_full: int, mass, ncv: int | None,
+                 start, c: np.ndarray, coupled: bool, n_want: int):
+        """(lam, full vectors, the next WarmStart, "warm" | "arpack"): the n_want lowest
+        eigenpairs from ``start`` (engine.plate.warm, certified) when it can, else ARPACK's
+        k (one factorisation either way)."""
+        mb, M = mass
+        lu = self.factor(kd, mb, sigma)
+        if start is not None:
+            got = warm_eig(start, lu, M, sigma, c, coupled, n_want)
+            if got is not None:
+                lam, vec, nxt = got
+                COUNTS["warm"] += 1
+                return lam, self.expand(vec, n_full), nxt, "warm"
+            COUNTS["failed"] += 1
+        lam, full = self.eig(kd, None, k, sigma, n_full, mass, ncv=ncv, lu=lu)
+        o = np.argsort(lam)
+        nxt = None
+        if lam.size > n_want:   # ARPACK's values are converged to 1e-10 (relative, theta)
+            nxt = WarmStart(full[self.dofs][:, o], lam[o], n_want, float(lam[o][n_want]) * (1 - 1e-8),
+                            np.array(c, float), M)
+        return lam, full, nxt, "arpack"
 
 
 def point_entries(mesh: Mesh, pat: Pattern, x: float, y: float,
