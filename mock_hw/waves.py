@@ -295,14 +295,15 @@ def _causal(y: np.ndarray, fs: float, t_first: float, t_source: float = 0.0) -> 
     The propagating-mode sum with its DC bin dropped carries a constant offset
     (the period mean of the quasi-static step response) plus a slow drift; the
     offset is the mean over t < t_source + 0.95 t_first, subtracted everywhere, and the
-    remainder before that time is faded out with a half-cosine (over its last fifth).
+    remainder before that time is zeroed, faded out with a half-cosine over 0.19 t_first
+    (the last fifth of the stretch from the source).
     """
     y = np.array(y, float)
     m = int((t_source + 0.95 * t_first) * fs)
     if m >= 2:
         y -= y[:m].mean()
         ramp = np.zeros(m)
-        k = max(1, m // 5)
+        k = max(1, min(m, int(0.95 * t_first * fs)) // 5)
         ramp[m - k:] = 0.5 - 0.5 * np.cos(np.pi * (np.arange(k) + 1) / (k + 1))
         y[:m] *= ramp
     else:
