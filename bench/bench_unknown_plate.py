@@ -11,7 +11,8 @@ Records: 'simulated' = ``mock_hw`` with labid's SAFE (engine.safe) as the plate;
 = the same rig with the plate's transfer functions from ``legendre_safe`` (the hook
 ``mock_hw.waves.transfer_model``).
 
-Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_unknown_plate.py [case ...]
+Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_unknown_plate.py [case ...] [simulated|independent] [stiff|soft]
+(stiff: the plate x 1/1.4, the file 40 % too stiff; soft: x 1/0.6)
 """
 from __future__ import annotations
 
@@ -171,6 +172,9 @@ def main(argv) -> None:
                                "bench/rigs/cfrp_pencil_2dir_s0.toml")
     sweep_far = rig_from_text((HERE / "rigs" / "cfrp_pzt_sweep_2dir_far.toml").read_text(),
                               "bench/rigs/cfrp_pzt_sweep_2dir_far.toml")
+    far_text = (HERE / "rigs" / "cfrp_pzt_sweep_2dir_far.toml").read_text()
+    sweep_far_quiet = rig_from_text(far_text.replace("noise_v = 1.0e-3", "noise_v = 1.0e-7"),
+                                    "bench/rigs/cfrp_pzt_sweep_2dir_far.toml (noise 0.1 uV)")
     edge = {d: rig_from_text((HERE / "rigs" / f"cfrp_pencil_edge_{d}.toml").read_text(),
                              f"bench/rigs/cfrp_pencil_edge_{d}.toml") for d in (0, 90)}
     cases = {
@@ -183,6 +187,11 @@ def main(argv) -> None:
                                              "along 0 and 90 deg)", two_dir_s0, large, 24, sc, m),
         "sweep_far": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz at (0.35, 0.35), 2 shots each, MFCs "
                                             "20 / 40 cm along 0 / 90 deg)", sweep_far, large, 10, sc, m),
+        # session 26: the sweep's wrong S0 points along 0 deg traced: bias (they stay without noise)
+        # or noise (they shrink with 6 shots per burst instead of 2)
+        "sweep_far_quiet": lambda sc, m: run_case("the sweep_far rig with 0.1 uV noise (was 1 mV)", sweep_far_quiet,
+                                                  large, 10, sc, m),
+        "sweep_far_30": lambda sc, m: run_case("the sweep_far rig, 6 shots per burst (30)", sweep_far, large, 30, sc, m),
         # session 25: S0 from leads broken on the plate's edge (an in-plane force), one rig per
         # direction (the force along the sensors' line); A0 from the face breaks of two_dir_s0
         "edge": lambda sc, m: [run_case(f"1 m CFRP plate ({n} pencil breaks on the edge, force along {d} deg, MFCs "
@@ -191,9 +200,10 @@ def main(argv) -> None:
     }
     pick = [a for a in argv if a in cases] or list(cases)
     models = [a for a in argv if a in ("simulated", "independent")] or ["simulated"]
+    scales = [s for a, s in (("stiff", 1 / 1.4), ("soft", 1 / 0.6)) if a in argv] or [1 / 1.4, 1 / 0.6]
     for name in pick:
         for model in models:
-            for scale in (1 / 1.4, 1 / 0.6):
+            for scale in scales:
                 cases[name](scale, model)
 
 
