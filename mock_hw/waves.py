@@ -293,15 +293,17 @@ def _causal(y: np.ndarray, fs: float, t_first: float, t_source: float = 0.0) -> 
     start): nothing can arrive before t_source + t_first, t_first = d / c_max.
 
     The propagating-mode sum with its DC bin dropped carries a constant offset
-    (the period mean of the quasi-static step response) plus a slow drift; the
-    offset is the mean over t < t_source + 0.95 t_first, subtracted everywhere, and the
-    remainder before that time is zeroed, faded out with a half-cosine over 0.19 t_first
-    (the last fifth of the stretch from the source).
+    (the period mean of the quasi-static step response) plus a slow drift (a face break's
+    A0 strain, without its evanescent partner, grows linearly: a sawtooth over the period);
+    the level at the cut t_cut = t_source + 0.95 t_first (a straight line fitted to the
+    stretch before it) is subtracted everywhere, so the record is continuous there, and the
+    stretch is zeroed, faded out with a half-cosine over its last 0.19 t_first.
     """
     y = np.array(y, float)
     m = int((t_source + 0.95 * t_first) * fs)
     if m >= 2:
-        y -= y[:m].mean()
+        c0, c1 = np.polynomial.polynomial.polyfit(np.arange(m, dtype=float), y[:m], 1)
+        y -= c0 + c1 * m
         ramp = np.zeros(m)
         k = max(1, min(m, int(0.95 * t_first * fs)) // 5)
         ramp[m - k:] = 0.5 - 0.5 * np.cos(np.pi * (np.arange(k) + 1) / (k + 1))
