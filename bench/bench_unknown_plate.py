@@ -175,6 +175,8 @@ def main(argv) -> None:
     far_text = (HERE / "rigs" / "cfrp_pzt_sweep_2dir_far.toml").read_text()
     sweep_far_quiet = rig_from_text(far_text.replace("noise_v = 1.0e-3", "noise_v = 1.0e-7"),
                                     "bench/rigs/cfrp_pzt_sweep_2dir_far.toml (noise 0.1 uV)")
+    edge_quiet = rig_from_text((HERE / "rigs" / "cfrp_pencil_edge_0.toml").read_text().replace(
+        "noise_v = 2.0e-4", "noise_v = 1.0e-7"), "bench/rigs/cfrp_pencil_edge_0.toml (noise 0.1 uV)")
     edge = {d: rig_from_text((HERE / "rigs" / f"cfrp_pencil_edge_{d}.toml").read_text(),
                              f"bench/rigs/cfrp_pencil_edge_{d}.toml") for d in (0, 90)}
     cases = {
@@ -191,6 +193,8 @@ def main(argv) -> None:
         # or noise (they shrink with 6 shots per burst instead of 2)
         "sweep_far_quiet": lambda sc, m: run_case("the sweep_far rig with 0.1 uV noise (was 1 mV)", sweep_far_quiet,
                                                   large, 10, sc, m),
+        "edge_quiet": lambda sc, m: run_case("the edge-0 rig with 0.1 uV noise (was 0.2 mV), 12 breaks", edge_quiet, large,
+                                             12, sc, m, EDGE_BAND),
         "sweep_far_30": lambda sc, m: run_case("the sweep_far rig, 6 shots per burst (30)", sweep_far, large, 30, sc, m),
         # session 25: S0 from leads broken on the plate's edge (an in-plane force), one rig per
         # direction (the force along the sensors' line); A0 from the face breaks of two_dir_s0
