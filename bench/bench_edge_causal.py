@@ -1,25 +1,26 @@
-"""Issue 24, session 25 (h41): where the edge break's S0 bias along 0 deg comes from.
+"""Issue 24, sessions 25-26 (h41, h42): the edge break's S0 bias along 0 deg and the record synthesis.
 
 The edge break's S0 picks along 0 deg on the plate 40 % stiffer than the file were +1.4 / +1.6 %
-off at 66 / 91 kHz with sigmas ~0.4 % (bench_unknown_plate.py ``edge``). This bench builds the
-reflection-free, noise-free S0 strain at the rig's two sensors (20 / 40 cm along the force) from
-the INDEPENDENT model's transfer (bench/independent/legendre_safe.py, load 'inplane'; no
-engine.safe), for a 1 us lead-break step, three ways:
+off at 66 / 91 kHz with sigmas ~0.4 % (bench_unknown_plate.py ``edge``, session 25). This bench
+builds the reflection-free, noise-free S0 strain at the rig's two sensors (20 / 40 cm along the
+force) from the INDEPENDENT model's transfer (bench/independent/legendre_safe.py, load 'inplane';
+no engine.safe), for the rig's 1 us lead-break step, in these ways:
 
 * 'ideal': the transfer's own time response, the source 200 us into a long FFT period (nothing cut);
-* 'rig chain': as ``mock_hw.waves`` synthesises a record: the source at t = 0 of the FFT period and
-  ``mock_hw.waves._causal`` (the mean before 0.95 r / c_max subtracted, that stretch faded out);
-* 'numpy': the same two signals by a zero-phase Butterworth band-pass (+-15 %) and the Hilbert
+* 'far field': the same with the strain kernel's H1(kr) replaced by its large-kr form (exact pick);
+* 'rig chain': the rig's own synthesis ``mock_hw.waves._wave_fine`` (session 26: the source
+  ``SOURCE_PAD_S`` into the FFT period, causality cut at that pad + 0.95 r / c_max);
+* 'old chain': the same function with the pad set to 0 (the synthesis before session 26: the
+  source at the period's first sample, the cut at 0.95 r / c_max);
+* 'numpy': each signal also by a zero-phase Butterworth band-pass (+-15 %) and the Hilbert
   envelope's peak (scipy only), as a second estimate beside labid's CWT ridge (cmor2-1, the
   wavelet labid chose at 43-73 kHz).
 
 Each pair velocity 0.2 m / (t_40 - t_20) is compared with the true plate's group velocity
 (legendre_safe). ``records``: 36 breaks of the edge-0 rig (plate 1/0.6, independent model, trigger
--3 mV so that every shot triggers both ways) analysed by labid and by the numpy envelope, once as the
-rig synthesises them and once with the synthesis' source moved 200 us into its FFT period
-(``padded``: a monkeypatch of ``mock_hw.waves.source_force`` / ``_causal`` inside this process;
-mock_hw itself is unchanged).
-Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_edge_causal.py [records]
+-3 mV so that every shot triggers both ways) analysed by labid and by the numpy envelope, with the
+rig's chain and with the old one (``source_pad(0)``); ``quiet``: the same with 0.1 uV noise.
+Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_edge_causal.py [records] [quiet]
 """
 from __future__ import annotations
 
@@ -47,34 +48,69 @@ from mock_hw.rig import truth_laminate  # noqa: E402
 HERE = Path(__file__).resolve().parent
 FS, FMAX, RISE = 2e6, 400e3, 1e-6           # the rig's rate, synthesis band and lead rise (cfrp_pencil_edge_0)
 R1, R2 = 0.20, 0.40
+N_CHAIN = 2 * 4096 + 16                      # the rig's fine record length / OVERSAMPLE (samples 4096)
+T0 = 200e-6                                  # the source's time in the compared signals (s)
 F = np.array([43e3, 55e3, 66e3, 75e3, 91e3, 110e3, 134e3, 158e3])
 
 
-def signals(lam, direction, n, t0, causal, far_field=False):
-    """S0 strain per newton at R1 and R2 for a 1 us raised-cosine step force (s axis: source at t0);
-    far_field: H1(kr) of the strain kernel replaced by its large-kr form sqrt(2 / (pi kr))
-    exp(i(kr - 3 pi / 4)) (no non-propagating near-field term)."""
-    f = np.fft.rfftfreq(n, 1 / FS)
-    band = (f > 0) & (f <= FMAX)
-    fb = f[band]
-    taper = np.where(fb <= 0.9 * FMAX, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * FMAX) / (0.1 * FMAX))))
-    tt = np.arange(0, RISE, 1 / (16 * FS))
-    pulse = np.sin(np.pi * tt / RISE) ** 2
-    pulse /= pulse.sum()
-    step = np.exp(-2j * np.pi * np.outer(fb, tt)) @ pulse / (-2j * np.pi * fb)   # conj convention below
-    cmax = mock_waves._fastest(lam, direction, FMAX)
+def s0_only(lam, r, f, **kw):
+    """legendre_safe's S0 transfer alone, in ``engine.safe.mode_transfer``'s signature."""
+    return {"S0": independent_transfer(lam, r, f, **kw)["S0"]}
+
+
+@contextlib.contextmanager
+def source_pad(t_pad: float):
+    """mock_hw's synthesis with its source ``t_pad`` into the FFT period (0: the chain before
+    session 26, the source at the period's first sample); restored on exit."""
+    old = mock_waves.SOURCE_PAD_S
+    mock_waves.SOURCE_PAD_S = t_pad
+    mock_waves._wave_fine.cache_clear()
+    mock_rig._cached_template.cache_clear()
+    try:
+        yield
+    finally:
+        mock_waves.SOURCE_PAD_S = old
+        mock_waves._wave_fine.cache_clear()
+        mock_rig._cached_template.cache_clear()
+
+
+def signals(lam, direction, n, t0, chain=None, far_field=False):
+    """S0 strain per newton at R1 and R2 for the rig's lead break (``mock_hw.waves.source_force``,
+    a 1 us raised-cosine step), n samples at FS with the source at t0.
+
+    chain None: 'ideal', the transfer's own periodic time response (nothing cut); chain = t_pad:
+    the rig's own synthesis ``mock_hw.waves._wave_fine`` (one ray, no aperture, no delay) with the
+    source t_pad into its FFT period (0: the old chain), its fine grid taken every OVERSAMPLE-th
+    sample, placed at t0 after zeros (the record's pre-trigger). far_field (ideal only): H1(kr) of
+    the strain kernel replaced by its large-kr form sqrt(2 / (pi kr)) exp(i(kr - 3 pi / 4))."""
+    force = mock_waves.source_force(("pencil", RISE))
     out = []
     for r in (R1, R2):
-        H = independent_transfer(lam, r, fb, direction_deg=direction, load="inplane")["S0"]
+        if chain is not None:
+            with source_pad(chain), mock_waves.transfer_model("legendre S0", s0_only):
+                os_ = mock_waves.OVERSAMPLE
+                y = mock_waves._wave_fine(lam, ((r, float(direction), 1.0),), ("pencil", RISE), FS,
+                                          os_ * N_CHAIN, 0.0, FMAX, 0.0, 0.0,
+                                          ("inplane", 0.0, (("top", 0.5), ("bottom", 0.5))), "top",
+                                          "legendre S0")[::os_]
+            z, i0 = np.zeros(n), int(round(t0 * FS))
+            z[i0:i0 + min(y.size, n - i0)] = y[:n - i0]
+            out.append(z)
+            continue
+        f = np.fft.rfftfreq(n, 1 / FS)
+        band = (f > 0) & (f <= FMAX)
+        fb = f[band]
+        taper = np.where(fb <= 0.9 * FMAX, 1.0, 0.5 * (1 + np.cos(np.pi * (fb - 0.9 * FMAX) / (0.1 * FMAX))))
+        H = 0.5 * sum(independent_transfer(lam, r, fb, direction_deg=direction, load="inplane", source_face=face)["S0"]
+                      for face in ("top", "bottom"))
         if far_field:
             k = branches(plate_of(layers_of(lam.plies, direction), ORDER), FMAX * 1.05).at(2, 2 * np.pi * fb)[0]
             with np.errstate(invalid="ignore", divide="ignore"):
                 fac = np.sqrt(2 / (np.pi * k * r)) * np.exp(1j * (k * r - 0.75 * np.pi)) / special.hankel1(1, k * r)
             H = np.where(np.isfinite(fac), H * fac, 0.0)
         X = np.zeros(f.size, complex)
-        X[band] = np.conj(H) * taper * step * np.exp(-2j * np.pi * fb * t0)
-        y = np.fft.irfft(X, n)
-        out.append(mock_waves._causal(y, FS, r / cmax) if causal else y)
+        X[band] = np.conj(H) * taper * force.spectrum(fb) * np.exp(-2j * np.pi * fb * t0)
+        out.append(np.fft.irfft(X, n) * FS)
     return out
 
 
@@ -100,41 +136,13 @@ def pair_errors(x1, x2, t0, ref, c):
     return 100 * (np.array(cwt) / ref - 1), 100 * (np.array(env) / ref - 1)
 
 
-@contextlib.contextmanager
-def source_padded(t_pad: float = 200e-6):
-    """mock_hw's synthesis with the source t_pad into the FFT period (causality cut at t_pad + r / c_max,
-    then the record rolled back by t_pad); restored on exit."""
-    force, causal = mock_waves.source_force, mock_waves._causal
-
-    class Delayed:
-        def __init__(self, f):
-            self.f = f
-
-        def spectrum(self, fb):
-            return self.f.spectrum(fb) * np.exp(-2j * np.pi * np.asarray(fb) * t_pad)
-
-        def __call__(self, t):
-            return self.f(t)
-
-    mock_waves.source_force = lambda key: Delayed(force(key))
-    mock_waves._causal = lambda y, fs, t_first: np.roll(causal(y, fs, t_pad + t_first), -int(round(t_pad * fs)))
-    mock_waves._wave_fine.cache_clear()
-    mock_rig._cached_template.cache_clear()
-    try:
-        yield
-    finally:
-        mock_waves.source_force, mock_waves._causal = force, causal
-        mock_waves._wave_fine.cache_clear()
-        mock_rig._cached_template.cache_clear()
-
-
 def records_case(large, n=36) -> None:
     """labid's S0 picks and the numpy envelope on the rig's records, as synthesised and padded."""
     text = (HERE / "rigs" / "cfrp_pencil_edge_0.toml").read_text().replace("level_v = -0.005", "level_v = -0.003")
     rig = rig_from_text(text, "bench/rigs/cfrp_pencil_edge_0.toml (trigger -3 mV)")
     rig = replace(rig, sim=replace(rig.sim, truth_scale=(("*", 1 / 0.6),)))
     lam = truth_laminate(large.laminate, rig.sim.truth_scale)
-    for name, ctx in (("as synthesised", contextlib.nullcontext()), ("padded", source_padded())):
+    for name, ctx in (("rig chain (session 26)", contextlib.nullcontext()), ("old chain (pad 0)", source_pad(0.0))):
         with ctx:
             recs = records(rig, large, n, 0, "independent")
         feats, *_ = wave_features(recs, rig, large, EDGE_BAND, [])
@@ -165,13 +173,13 @@ def main() -> None:
         for direction in (0.0, 90.0):
             ref = reference(lam, direction, F)["S0"]
             c = float(np.mean(ref))
-            for name, n, t0, causal, ff in (("ideal", 1 << 14, 200e-6, False, False),
-                                            ("rig chain", 1 << 15, 0.0, True, False),
-                                            ("far field", 1 << 15, 0.0, True, True)):
-                x1, x2 = signals(lam, direction, n, t0, causal, ff)
-                e_cwt, e_env = pair_errors(x1, x2, t0, ref, c)
+            for name, chain, ff in (("ideal", None, False), ("far field", None, True),
+                                    ("rig chain", mock_waves.SOURCE_PAD_S, False), ("old chain", 0.0, False)):
+                x1, x2 = signals(lam, direction, 1 << 14, T0, chain, ff)
+                e_cwt, e_env = pair_errors(x1, x2, T0, ref, c)
                 for how, e in (("CWT cmor2-1", e_cwt), ("numpy envelope", e_env)):
-                    print(f"  {label}, {direction:g} deg, {name:9s}, {how:14s}: " + " ".join(f"{v:+6.2f}" for v in e))
+                    print(f"  {label}, {direction:g} deg, {name:9s}, {how:14s}: " + " ".join(f"{v:+6.2f}" for v in e),
+                          flush=True)
     if "records" in sys.argv[1:]:
         records_case(large)
     print(f"CPU {time.process_time() - c0:.1f} s")

@@ -45,6 +45,9 @@ __all__ = ["OVERSAMPLE", "source_force", "source_peak", "mechanical", "wave_chan
            "apply_crosstalk", "transfer_model", "model_token", "force_direction", "edge_rays"]
 
 OVERSAMPLE = 4
+#: where the source acts inside the synthesis' FFT period (s): longer than a step source's
+#: settling within the analysis band and the longest analysis wavelet (~5 cycles at 20 kHz)
+SOURCE_PAD_S = 200e-6
 _MODEL: dict = {"name": "engine.safe", "transfer": None}
 
 
@@ -223,13 +226,19 @@ def _wave_fine(lam, rays: tuple, force_key: tuple, fs: float, n_fine: int, apert
 
     Sum over the SAFE modes of ``engine.safe.mode_transfer`` times the source
     spectrum (half-cosine taper over the top 10 % below fmax, DC dropped), each mode
-    attenuated by exp(-eta k_m r / 2) with k_m = 2 pi f / c_phase,m, made causal
-    (``_causal``), then delayed by delay_s (to the nearest fine sample). FFT period:
-    8 records plus the longest ray's travel.
+    attenuated by exp(-eta k_m r / 2) with k_m = 2 pi f / c_phase,m. The source sits
+    ``SOURCE_PAD_S`` into the FFT period (8 records plus that pad): a lead break is a step
+    whose strain never returns to zero, so the period's wrapped-around tail and the DC drop's
+    offset must lie in a long stretch before the first arrival, not within a wavelet's length
+    of it (session 26: with the source at the period's first sample, ``_causal`` cut that tail
+    differently at 20 and 40 cm and biased an S0 pair by +1.6 .. +1.9 % at 55-75 kHz). Made
+    causal (``_causal`` at the pad + 0.95 r / c_max), then read from the source onset delayed
+    by delay_s (to the nearest fine sample).
     """
     force = source_force(force_key)
     n_rec = -(-n_fine // OVERSAMPLE)
-    n_fft = next_fast_len(8 * n_rec, real=True)
+    pad = int(round(SOURCE_PAD_S * fs))               # coarse samples; the source at t = pad / fs
+    n_fft = next_fast_len(8 * n_rec + pad, real=True)
     f = np.fft.rfftfreq(n_fft, 1.0 / fs)
     band = (f > 0) & (f <= fmax)
     fb = f[band]
@@ -250,16 +259,13 @@ def _wave_fine(lam, rays: tuple, force_key: tuple, fs: float, n_fine: int, apert
                         H[label] = H[label] * np.exp(-eta * (2 * np.pi * fb / np.interp(fb, fp, vp)) * r / 2.0)
             total += weight * sign * sum(H.values(), np.zeros(fb.size, complex))
     Y = np.zeros(f.shape, complex)
-    Y[band] = np.conj(total) * force.spectrum(fb) * taper
+    Y[band] = np.conj(total) * force.spectrum(fb) * taper * np.exp(-2j * np.pi * fb * (pad / fs))
     y = irfft(Y, n=OVERSAMPLE * n_fft) * fs * OVERSAMPLE
     r0, d0, _ = min(rays)
     t_first = max(r0 - aperture / 2.0, 1e-6) / _fastest(lam, d0, fmax)
-    y = _causal(y, OVERSAMPLE * fs, t_first)
-    shift = int(round(delay_s * OVERSAMPLE * fs))     # delay to the nearest fine sample
-    if shift > 0:
-        y = np.concatenate([np.zeros(shift), y[:-shift]])
-    elif shift < 0:
-        y = np.concatenate([y[-shift:], np.full(-shift, y[-1])])
+    y = _causal(y, OVERSAMPLE * fs, t_first, pad / fs)
+    start = OVERSAMPLE * pad - int(round(delay_s * OVERSAMPLE * fs))   # delay to the nearest fine sample
+    y = y[start:] if start >= 0 else np.concatenate([np.zeros(-start), y])
     return y[:n_fine]
 
 
@@ -282,20 +288,24 @@ def _fastest(lam, direction_deg: float, fmax: float) -> float:
     return float(max(np.nanmax(m.group_velocity_m_s) for m in disp.modes))
 
 
-def _causal(y: np.ndarray, fs: float, t_first: float) -> np.ndarray:
-    """Enforce causality on a SAFE record: nothing can arrive before t_first = d / c_max.
+def _causal(y: np.ndarray, fs: float, t_first: float, t_source: float = 0.0) -> np.ndarray:
+    """Enforce causality on a SAFE record whose source acts at t_source (s from the period's
+    start): nothing can arrive before t_source + t_first, t_first = d / c_max.
 
     The propagating-mode sum with its DC bin dropped carries a constant offset
-    (the period mean of the quasi-static step response) plus a slow drift; the
-    offset is the mean over t < 0.95 t_first, subtracted everywhere, and the
-    remainder before that time is faded out with a half-cosine.
+    (the period mean of the quasi-static step response) plus a slow drift (a face break's
+    A0 strain, without its evanescent partner, grows linearly: a sawtooth over the period);
+    the level at the cut t_cut = t_source + 0.95 t_first (a straight line fitted to the
+    stretch before it) is subtracted everywhere, so the record is continuous there, and the
+    stretch is zeroed, faded out with a half-cosine over its last 0.19 t_first.
     """
     y = np.array(y, float)
-    m = int(0.95 * t_first * fs)
+    m = int((t_source + 0.95 * t_first) * fs)
     if m >= 2:
-        y -= y[:m].mean()
+        c0, c1 = np.polynomial.polynomial.polyfit(np.arange(m, dtype=float), y[:m], 1)
+        y -= c0 + c1 * m
         ramp = np.zeros(m)
-        k = max(1, m // 5)
+        k = max(1, min(m, int(0.95 * t_first * fs)) // 5)
         ramp[m - k:] = 0.5 - 0.5 * np.cos(np.pi * (np.arange(k) + 1) / (k + 1))
         y[:m] *= ramp
     else:
