@@ -156,9 +156,33 @@ def reduce_class(cls: DofClass, wmax: float, n_k: int | None = None, extra: int 
                     B, kmax, n_cut)
 
 
+#: wavenumbers per ``eigh`` call (``_eig_chunks``)
+CHUNK = 32
+
+
+def _eig_chunks(red: Reduced, k: np.ndarray):
+    """(slice, values, vectors) of a0 + k a1 + k^2 a2, ``CHUNK`` wavenumbers at a time.
+
+    The same LAPACK call per matrix as one batched ``eigh`` (bit for bit the same pairs), but
+    the temporaries stay < 1 MB and are reused: the 257 x 56 x 56 arrays of one call were
+    fresh memory, ~2,000 more page faults (~5-10 ms of system time) in ``labid dispersion``'s
+    process (issue 29, session 26)."""
+    for s in range(0, len(k), CHUNK):
+        kk = k[s:s + CHUNK]
+        A = np.multiply.outer(kk, red.a1)          # a0 + k a1 + k^2 a2: the same sums, in place
+        A += red.a0
+        A += np.multiply.outer(kk * kk, red.a2)
+        w, v = np.linalg.eigh(A)
+        yield slice(s, s + len(kk)), w, v
+
+
 def _batched_eig(red: Reduced, k: np.ndarray):
-    A = red.a0[None] + k[:, None, None] * red.a1[None] + (k * k)[:, None, None] * red.a2[None]
-    return np.linalg.eigh(A)
+    """Every eigenpair at each k: (K, r) values, (K, r, r) vectors."""
+    r = red.a0.shape[0]
+    lam, vec = np.empty((len(k), r)), np.empty((len(k), r, r))
+    for sl, w, v in _eig_chunks(red, k):
+        lam[sl], vec[sl] = w, v
+    return lam, vec
 
 
 def _hermite_root(k0, k1, l0, l1, d0, d1, target, n_iter: int = 8):
@@ -357,15 +381,17 @@ def _sample(red: Reduced, ks: np.ndarray, nb: int, probes=None, values_only: boo
     if values_only:
         A = red.a0[None] + ks[:, None, None] * red.a1[None] + (ks * ks)[:, None, None] * red.a2[None]
         return [np.linalg.eigvalsh(A)[:, :nb]]
-    lam, vec = _batched_eig(red, ks)
-    y = vec[:, :, :nb]                                       # (K, r, nb)
-    Ay = red.a1 @ y + 2 * ks[:, None, None] * (red.a2 @ y)   # matmul, not einsum: ~7x faster
-    dl = np.einsum("kib,kib->kb", y, Ay)
-    out = [lam[:, :nb], dl]
-    if probes is not None:
-        pv = np.einsum("mr,krb->kmb", probes, y)             # (K, m, nb)
-        out.append(np.einsum("kmb,knb->kmnb", pv, pv).reshape(len(ks), -1, nb))
-    return out
+    parts = []
+    for sl, lam, vec in _eig_chunks(red, ks):       # per chunk: only nb columns are kept
+        y = vec[:, :, :nb]                                   # (K, r, nb)
+        k = ks[sl]
+        Ay = red.a1 @ y + 2 * k[:, None, None] * (red.a2 @ y)   # matmul, not einsum: ~7x faster
+        out = [lam[:, :nb], np.einsum("kib,kib->kb", y, Ay)]
+        if probes is not None:
+            pv = np.einsum("mr,krb->kmb", probes, y)         # (K, m, nb)
+            out.append(np.einsum("kmb,knb->kmnb", pv, pv).reshape(len(k), -1, nb))
+        parts.append(out)
+    return [np.concatenate(p) for p in zip(*parts)]
 
 
 def _chop(c: np.ndarray, rel: float = 1e-16) -> np.ndarray:
