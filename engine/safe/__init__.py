@@ -9,6 +9,7 @@ Modules (each readable alone):
 * :mod:`.branches` -- Rayleigh-Ritz reduction of a class and its branches as
   Chebyshev series in k; roots at given frequencies (the measured reason for this
   hand-written series is in its docstring);
+* :mod:`.roots` -- the roots of the converged branch series at given frequencies;
 * :mod:`.labels` -- names of the branches (A0, S0, SH0, A1, ...);
 * :mod:`.curves` -- dispersion curves and group velocities (the public entry);
 * :mod:`.forces` -- force histories (hammer, pencil-lead break, tone burst);
@@ -39,7 +40,7 @@ array([5391.7, 5335.5])
 Package-internal (public names shared by the modules of this package, and used by
 its tests and benchmarks; not for other layers): ``model.DofClass``,
 ``model.class_bases``, ``model.coupling``, ``model.TWO_PI``, everything in
-``branches``, ``labels`` and ``transfer``.
+``branches``, ``roots``, ``labels`` and ``transfer``.
 """
 import importlib
 

@@ -11,7 +11,8 @@ from typing import Sequence
 import numpy as np
 
 from ..laminate import Laminate
-from .branches import cheb_branches, reduce_class, roots_from_series, solve_branches
+from .branches import cheb_branches, reduce_class, solve_branches
+from .roots import roots_from_series
 from .labels import FUND_ORDER, branch_table, fundamental_rows
 from .model import TWO_PI, SafeError, SafeModel, projected_derivatives, safe_model
 

@@ -10,7 +10,8 @@ import pytest
 
 from engine.laminate import Laminate, Material, Ply
 from engine.safe import safe_model
-from engine.safe.branches import cheb_branches, reduce_class, roots_from_series
+from engine.safe.branches import cheb_branches, reduce_class
+from engine.safe.roots import roots_from_series
 
 EXACT = {"A0": (1783.696, 2908.787), "S0": (5391.689, 5335.510)}
 
