@@ -60,8 +60,8 @@ def main(argv=None) -> int:
     res: dict = {}
     wall: dict = {}
     print(f"load at start: {os.getloadavg()[0]:.2f}; bytecode cache: {'warm' if pyc else 'none'}")
-    for _ in range(a.repeat):
-        for tag, t in trees.items():
+    for i in range(a.repeat):
+        for tag, t in (list(trees.items()) if i % 2 == 0 else list(trees.items())[::-1]):  # ABBA
             c, w = cpu(t, CMD, pyc)
             res.setdefault(tag, []).append(c)
             wall.setdefault(tag, []).append(w)
