@@ -9,6 +9,7 @@ Modules (each readable alone):
 * :mod:`.branches` -- Rayleigh-Ritz reduction of a class and its branches as
   Chebyshev series in k; roots at given frequencies (the measured reason for this
   hand-written series is in its docstring);
+* :mod:`.roots` -- the roots of the converged branch series at given frequencies;
 * :mod:`.labels` -- names of the branches (A0, S0, SH0, A1, ...);
 * :mod:`.curves` -- dispersion curves and group velocities (the public entry);
 * :mod:`.forces` -- force histories (hammer, pencil-lead break, tone burst);
@@ -39,13 +40,30 @@ array([5391.7, 5335.5])
 Package-internal (public names shared by the modules of this package, and used by
 its tests and benchmarks; not for other layers): ``model.DofClass``,
 ``model.class_bases``, ``model.coupling``, ``model.TWO_PI``, everything in
-``branches``, ``labels`` and ``transfer``.
+``branches``, ``roots``, ``labels`` and ``transfer``.
 """
+import importlib
+
 from .curves import (Dispersion, ModeCurve, ModeSolution, dispersion, dispersion_from_model, group_velocity,
                      group_velocity_jacobian, mode_solution)
-from .forces import ForceHistory, hammer_force, pencil_lead_break, tone_burst
 from .model import SafeError, SafeModel, bond_matrix, default_discretisation, ply_stiffness, safe_model
-from .transient import QUANTITIES, mode_transfer, mode_velocities, transient_response
+
+#: names of the force and transient modules, imported at first use (PEP 562): the curves alone
+#: (``labid dispersion``, the wave blocks of identify) do not pay their import (~4-9 ms CPU)
+_LAZY = {**dict.fromkeys(("ForceHistory", "hammer_force", "pencil_lead_break", "tone_burst"), "forces"),
+         **dict.fromkeys(("QUANTITIES", "mode_transfer", "mode_velocities", "transient_response"), "transient")}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
 
 __all__ = [
     "ModeCurve", "Dispersion", "SafeModel", "SafeError",

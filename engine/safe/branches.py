@@ -43,8 +43,8 @@ from numpy.polynomial import chebyshev as npcheb
 
 from .model import DofClass
 
-__all__ = ["Reduced", "Branches", "reduce_class", "solve_branches", "cheb_branches",
-           "roots_from_series", "dense_table", "invert_table", "solve_full", "dct1"]
+__all__ = ["Reduced", "Branches", "reduce_class", "solve_branches", "cheb_branches", "hermite_root",
+           "dense_table", "invert_table", "solve_full", "dct1"]
 
 
 # ---------------------------------------------------------------------------
@@ -156,12 +156,36 @@ def reduce_class(cls: DofClass, wmax: float, n_k: int | None = None, extra: int 
                     B, kmax, n_cut)
 
 
+#: wavenumbers per ``eigh`` call (``_eig_chunks``)
+CHUNK = 32
+
+
+def _eig_chunks(red: Reduced, k: np.ndarray):
+    """(slice, values, vectors) of a0 + k a1 + k^2 a2, ``CHUNK`` wavenumbers at a time.
+
+    The same LAPACK call per matrix as one batched ``eigh`` (bit for bit the same pairs), but
+    the temporaries stay < 1 MB and are reused: the 257 x 56 x 56 arrays of one call were
+    fresh memory, ~2,000 more page faults (~5-10 ms of system time) in ``labid dispersion``'s
+    process (issue 29, session 26)."""
+    for s in range(0, len(k), CHUNK):
+        kk = k[s:s + CHUNK]
+        A = np.multiply.outer(kk, red.a1)          # a0 + k a1 + k^2 a2: the same sums, in place
+        A += red.a0
+        A += np.multiply.outer(kk * kk, red.a2)
+        w, v = np.linalg.eigh(A)
+        yield slice(s, s + len(kk)), w, v
+
+
 def _batched_eig(red: Reduced, k: np.ndarray):
-    A = red.a0[None] + k[:, None, None] * red.a1[None] + (k * k)[:, None, None] * red.a2[None]
-    return np.linalg.eigh(A)
+    """Every eigenpair at each k: (K, r) values, (K, r, r) vectors."""
+    r = red.a0.shape[0]
+    lam, vec = np.empty((len(k), r)), np.empty((len(k), r, r))
+    for sl, w, v in _eig_chunks(red, k):
+        lam[sl], vec[sl] = w, v
+    return lam, vec
 
 
-def _hermite_root(k0, k1, l0, l1, d0, d1, target, n_iter: int = 8):
+def hermite_root(k0, k1, l0, l1, d0, d1, target, n_iter: int = 8):
     """Root in [k0, k1] of the cubic Hermite interpolant of lambda(k) = target."""
     h = k1 - k0
     t = np.clip((target - l0) / np.where(l1 != l0, l1 - l0, 1.0), 0.0, 1.0)
@@ -216,7 +240,7 @@ def solve_branches(red: Reduced, omega: np.ndarray, branches: np.ndarray, n_grid
         cross = (L[None, :-1] <= w2[sel, None]) & (L[None, 1:] > w2[sel, None])
         has = cross.any(axis=1) & (omega[sel] > 0)
         n = cross.shape[1] - 1 - np.argmax(cross[:, ::-1], axis=1)    # last crossing: largest root
-        kk = _hermite_root(kg[n], kg[n + 1], L[n], L[n + 1], D[n], D[n + 1], w2[sel])
+        kk = hermite_root(kg[n], kg[n + 1], L[n], L[n + 1], D[n], D[n + 1], w2[sel])
         k[sel] = np.where(has, kk, np.nan)
     idx = np.nonzero(np.isfinite(k))[0]
     kk, jj, ww = k[idx], branches[idx], w2[idx]
@@ -357,66 +381,17 @@ def _sample(red: Reduced, ks: np.ndarray, nb: int, probes=None, values_only: boo
     if values_only:
         A = red.a0[None] + ks[:, None, None] * red.a1[None] + (ks * ks)[:, None, None] * red.a2[None]
         return [np.linalg.eigvalsh(A)[:, :nb]]
-    lam, vec = _batched_eig(red, ks)
-    y = vec[:, :, :nb]                                       # (K, r, nb)
-    Ay = red.a1 @ y + 2 * ks[:, None, None] * (red.a2 @ y)   # matmul, not einsum: ~7x faster
-    dl = np.einsum("kib,kib->kb", y, Ay)
-    out = [lam[:, :nb], dl]
-    if probes is not None:
-        pv = np.einsum("mr,krb->kmb", probes, y)             # (K, m, nb)
-        out.append(np.einsum("kmb,knb->kmnb", pv, pv).reshape(len(ks), -1, nb))
-    return out
-
-
-def _chop(c: np.ndarray, rel: float = 1e-16) -> np.ndarray:
-    """Drop trailing Chebyshev coefficients below rel * max (axis 0)."""
-    a = np.abs(c) if c.ndim == 1 else np.max(np.abs(c), axis=tuple(range(1, c.ndim)))
-    big = np.nonzero(a > rel * a.max())[0]
-    return c[: big[-1] + 1] if big.size else c[:1]
-
-
-def _cheb_vals(c: np.ndarray, k: np.ndarray, kmax: float, deriv: bool = False):
-    """Series c (n+1,) at k (Clenshaw); with deriv also d/dk."""
-    x = np.clip(1.0 - 2.0 * k / kmax, -1.0, 1.0)
-    v = npcheb.chebval(x, c)
-    if not deriv:
-        return v
-    return v, npcheb.chebval(x, npcheb.chebder(c)) * (-2.0 / kmax)
-
-
-def roots_from_series(br: Branches, omega: np.ndarray, j: int, n_dense: int = 256,
-                       n_iter: int = 12):
-    """Largest-root k of lambda_j(k) = omega^2 for each omega, with lambda_j'(k). NaN if none."""
-    kmax = br.kmax
-    c = _chop(br.lam[:, j])
-    dc = npcheb.chebder(c) * (-2.0 / kmax) if len(c) > 1 else np.zeros(1)
-    kd = np.linspace(0.0, kmax, n_dense)
-    xd = 1.0 - 2.0 * kd / kmax
-    L, D = npcheb.chebval(xd, c), npcheb.chebval(xd, dc)
-    w2 = omega ** 2
-    suffix_min = np.minimum.accumulate(L[::-1])[::-1]
-    n = np.searchsorted(suffix_min, w2, side="right") - 1          # last node with L <= w2
-    has = (n >= 0) & (n < n_dense - 1) & (omega > 0)
-    n = np.clip(n, 0, n_dense - 2)
-    lo, hi = kd[n], kd[n + 1]
-    k = _hermite_root(lo, hi, L[n], L[n + 1], D[n], D[n + 1], w2, n_iter=4)
-    act = np.nonzero(has)[0]
-    noise = 1e-14 * float(np.max(np.abs(L)))
-    for _ in range(n_iter):
-        if len(act) == 0:
-            break
-        x = np.clip(1.0 - 2.0 * k[act] / kmax, -1.0, 1.0)
-        f = npcheb.chebval(x, c) - w2[act]
-        d = npcheb.chebval(x, dc)
-        kn = k[act] - f / np.where(d > 0, d, np.inf)
-        # stay in the bracket of the dense grid (the start is already close)
-        kn = np.clip(kn, lo[act], hi[act])
-        done = (np.abs(kn - k[act]) <= 1e-12 * kn) | (np.abs(f) <= noise)
-        k[act] = kn
-        act = act[~done]
-    dl = _cheb_vals(_chop(br.dlam[:, j]), k, kmax)
-    k = np.where(has, k, np.nan)
-    return k, np.where(has, dl, np.nan)
+    parts = []
+    for sl, lam, vec in _eig_chunks(red, ks):       # per chunk: only nb columns are kept
+        y = vec[:, :, :nb]                                   # (K, r, nb)
+        k = ks[sl]
+        Ay = red.a1 @ y + 2 * k[:, None, None] * (red.a2 @ y)   # matmul, not einsum: ~7x faster
+        out = [lam[:, :nb], np.einsum("kib,kib->kb", y, Ay)]
+        if probes is not None:
+            pv = np.einsum("mr,krb->kmb", probes, y)         # (K, m, nb)
+            out.append(np.einsum("kmb,knb->kmnb", pv, pv).reshape(len(k), -1, nb))
+        parts.append(out)
+    return [np.concatenate(p) for p in zip(*parts)]
 
 
 def dense_table(br: Branches, j: int, n: int = 4096):
@@ -447,7 +422,7 @@ def invert_table(k, lam, dlam, omega):
     i = np.searchsorted(suffix_min, w2, side="right") - 1       # last i with lam_i <= w2
     has = (i >= 0) & (i < len(k) - 1) & (omega > 0)
     i = np.clip(i, 0, len(k) - 2)
-    kr = _hermite_root(k[i], k[i + 1], lam[i], lam[i + 1], dlam[i], dlam[i + 1], w2, n_iter=3)
+    kr = hermite_root(k[i], k[i + 1], lam[i], lam[i + 1], dlam[i], dlam[i + 1], w2, n_iter=3)
     t = (kr - k[i]) / (k[i + 1] - k[i])
     return np.where(has, kr, np.nan), i, t
 

@@ -11,7 +11,8 @@ from typing import Sequence
 import numpy as np
 
 from ..laminate import Laminate
-from .branches import cheb_branches, reduce_class, roots_from_series, solve_branches
+from .branches import cheb_branches, reduce_class, solve_branches
+from .roots import roots_from_series
 from .labels import FUND_ORDER, branch_table, fundamental_rows
 from .model import TWO_PI, SafeError, SafeModel, projected_derivatives, safe_model
 
@@ -96,9 +97,10 @@ def _solve_rows(model: SafeModel, w: np.ndarray, labels: tuple[str, ...] | None)
             for i, r in enumerate(slow):
                 sl = slice(i * len(w), (i + 1) * len(w))
                 results[r["label"]] = (k_s[sl], cg_s[sl], r["cutoff"], red, ci, r["j"])
-        for r in rs:
-            if br.converged[r["j"]]:
-                k, dl = roots_from_series(br, w, r["j"])
+        fast = [r for r in rs if br.converged[r["j"]]]
+        if fast:    # every converged branch of the class in one pass over its series
+            ks, dls = roots_from_series(br, w, [r["j"] for r in fast])
+            for r, k, dl in zip(fast, ks, dls):
                 with np.errstate(invalid="ignore", divide="ignore"):
                     cg = dl / (2.0 * w)
                 results[r["label"]] = (k, cg, r["cutoff"], red, ci, r["j"])

@@ -25,7 +25,6 @@ import contextlib
 import errno
 import os
 import resource
-import tempfile
 from pathlib import Path
 from typing import BinaryIO, Iterator
 
@@ -41,6 +40,8 @@ FULL = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 def temp_beside(path: str | Path, suffix: str = ".tmp") -> Path:
     """A new empty file ``.NAME.XXXXXXXX<suffix>`` beside ``path`` (``mkstemp``: created
     with O_EXCL under an unpredictable name, mode 0600 until ``publish``)."""
+    import tempfile     # here: its import (random, shutil) is ~5-8 ms of every command's start
+
     path = Path(path)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix, dir=path.parent)
     os.close(fd)

@@ -15,17 +15,19 @@ suite), in this order of precedence:
    them;
 4. otherwise one thread per process.
 
-Where labid decides, it limits the libraries already loaded with
-``threadpoolctl`` and sets the standard variables for libraries loaded later
-and for child processes. Parallelism that pays is explicit: processes
+Where labid decides, it sets the standard variables for libraries loaded later
+and for child processes, and limits the libraries already loaded with
+``threadpoolctl``. Before numpy is imported no BLAS/OpenMP library is loaded (labid
+loads them through numpy): the variables are then enough, and the command line decides
+that early (``labid.cli.main``), sparing threadpoolctl's import and library scan
+(~5-8 ms of ``labid dispersion``'s ~0.35 s CPU; issue 29, session 26). Parallelism that pays is explicit: processes
 (multi-start, ``--workers``), never BLAS threads.
 """
 from __future__ import annotations
 
 import os
+import sys
 from dataclasses import dataclass
-
-from threadpoolctl import threadpool_limits
 
 from .errors import UserError
 
@@ -66,14 +68,20 @@ def decide(threads: int | None = None, environ: os._Environ | dict | None = None
 
 
 _applied: int | None = None
+_at_load: int | None = None     # the count applied before numpy (and so any BLAS) was loaded
 
 
 def apply(threads: int) -> None:
     """Limit every BLAS/OpenMP library to ``threads``, now and for later loads and children."""
-    global _applied
+    global _applied, _at_load
     for v in STANDARD_VARS:
         os.environ[v] = str(threads)
-    threadpool_limits(limits=threads)
+    if "numpy" not in sys.modules:              # nothing loaded yet: the variables are read at load
+        _at_load = threads
+    elif _at_load != threads:                   # loaded under another count: limit them now
+        from threadpoolctl import threadpool_limits
+        threadpool_limits(limits=threads)
+        _at_load = None
     _applied = threads
 
 

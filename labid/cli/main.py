@@ -37,9 +37,6 @@ import keyword
 import os
 import signal
 import sys
-import tempfile
-import time
-import traceback
 
 from ..base import progress, threads
 from .options import bounded, cpu_count, write_json
@@ -128,6 +125,10 @@ def failure_line(e: BaseException) -> str | None:
 
 def crash_report(command: str, exc: BaseException) -> str | None:
     """Write the traceback of an internal failure to a file; its path (None if unwritable)."""
+    import tempfile     # here: only a crash needs them (~8 ms of every command's start otherwise)
+    import time
+    import traceback
+
     text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
     if os.environ.get("LABID_DEBUG"):
         sys.stderr.write(text)
@@ -165,6 +166,8 @@ def main(argv: list[str] | None = None) -> int:
             pass
     try:
         # a usage error is one line and exit 2 (argparse's SystemExit(2)), --help exit 0
+        if not any(str(a).startswith("--t") for a in argv):     # no --threads (nor an abbreviation)
+            _threads_early()
         try:
             parser = build_parser(command if command != "?" else None)
             nul = next((a for a in argv if "\0" in str(a)), None)
@@ -188,6 +191,16 @@ def main(argv: list[str] | None = None) -> int:
     if owner:
         _ENDING["rc"] = rc
     return rc
+
+
+def _threads_early() -> None:
+    """Decide the threads before the command's module loads numpy (labid.base.threads: the
+    variables then suffice, no threadpoolctl). ``_run_command`` decides again with the
+    parsed ``--threads`` and reports a bad value; here it is left for that."""
+    try:
+        threads.configure()
+    except UserError:
+        pass
 
 
 _ENDING: dict = {}

@@ -108,3 +108,31 @@ def test_cli_rejects_a_bad_thread_count_in_one_line():
     p = subprocess.run([sys.executable, "-m", "labid.cli.main", "modes", "cfrp"],
                        capture_output=True, text=True, env=_clean_env(LABID_THREADS="many"))
     assert p.returncode == 2 and "LABID_THREADS" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_decided_before_numpy_the_variables_alone_limit_every_library():
+    """The command line decides before the command's module imports numpy (issue 29, session 26):
+    no threadpoolctl then, and the libraries numpy loads afterwards still run one thread."""
+    r = _probe("""
+        import json, sys
+        from labid.base import threads
+        threads.configure()
+        early = "threadpoolctl" in sys.modules
+        import numpy, scipy.linalg
+        threads.configure()                 # again, as the command does: nothing to limit
+        late = "threadpoolctl" in sys.modules
+        from threadpoolctl import threadpool_info
+        print(json.dumps({"early": early, "late": late,
+                          "after": sorted({int(i["num_threads"]) for i in threadpool_info()})}))
+    """, _clean_env())
+    assert r == {"early": False, "late": False, "after": [1]}
+    r = _probe("""
+        import json
+        from labid.base import threads
+        threads.configure(1)
+        import numpy, scipy.linalg
+        threads.configure(2)                # another count once loaded: limited now
+        from threadpoolctl import threadpool_info
+        print(json.dumps({"after": sorted({int(i["num_threads"]) for i in threadpool_info()})}))
+    """, _clean_env())
+    assert r == {"after": [2]}
