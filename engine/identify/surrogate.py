@@ -36,6 +36,8 @@ SPREAD = 0.3
 BOX_REL = 0.5
 #: candidates ranked (scrambled Sobol points)
 N_CANDIDATES = 128
+#: basis directions kept: eigenvalues of V'MV above this fraction of the largest
+BASIS_DROP = 1e-12
 
 
 class RitzSurrogate:
@@ -80,7 +82,7 @@ class RitzSurrogate:
         V = np.hstack(vecs)
         Mr = V.T @ (M @ V)
         w, U = np.linalg.eigh(0.5 * (Mr + Mr.T))
-        keep = w > 1e-12 * w.max()
+        keep = w > BASIS_DROP * w.max()
         # M-orthonormal basis; not kept (3,125 x ~211 on the demo plate, 5 MB): the surrogate
         # lives on through the fit for refine(), and keeping it raised identify's peak RSS 14 MiB
         T = V @ (U[:, keep] / np.sqrt(w[keep]))
