@@ -2,9 +2,9 @@
 
 The plate's stiffness matrix is linear in the ply stiffness components q = (Q11, Q12,
 Q22, Q66, G13, G23) (``engine.plate.Q_NAMES``; springs add a constant part), and its
-mass matrix does not depend on the elastic constants. Projected on a basis V of modes
-solved at a few parameter sets (the start and the start with each searched constant
-raised by ``SPREAD``), K_r(p) = V^T K(p) V is the same linear combination
+mass matrix does not depend on the elastic constants. Projected on a basis V (the modes
+solved at the start, and for each searched constant raised by ``SPREAD`` one shift-invert
+block (K(p) - sigma M)^-1 M V_start), K_r(p) = V^T K(p) V is the same linear combination
 of seven small matrices, recovered exactly from K_r at seven parameter sets. One
 prediction is then a dense eigenproblem of a few hundred unknowns (milliseconds)
 instead of a sparse solve (0.2-0.4 s): :func:`global_search` ranks a space-filling set
@@ -45,7 +45,7 @@ class RitzSurrogate:
 
     ``start``: every elastic constant of the material (contract names, no density);
     ``names``: the constants the basis spans (each raised by SPREAD);
-    ``n_modes``: modes solved per basis point and returned per prediction;
+    ``n_modes``: modes solved at the start (the columns of each block) and returned per prediction;
     ``solve``: optional ``params -> Modes`` of ``n_modes`` modes (e.g. a memoised
     ``ModalForward.modes_at``) used instead of ``model.solve``.
     """
@@ -60,7 +60,7 @@ class RitzSurrogate:
             p[n] = start[n] * (1.0 + SPREAD)
             pts.append(p)
         first = (model.solve(self.n, params=pts[0], material=material) if solve is None else solve(pts[0]))
-        K0, M = model.matrices(dict(start), material)
+        _, M = model.matrices(dict(start), material)
         vecs = [first.shapes]
         # the other points need a span, not converged modes: one shift-invert block
         # (K(p) - sigma M)^-1 M V_start each (a factorisation and one solve of n columns)
