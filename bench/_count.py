@@ -51,6 +51,9 @@ class Counts:
         self._wrap(pm.PlateModel, "build", "plate model build")
         self._wrap(sc, "_model_for", "SAFE model (any SAFE call)")
         self._wrap(fw, "safe_group_velocity", "SAFE group velocity (fit blocks)")
+        import engine.identify.surrogate as su
+        if hasattr(su, "shift_invert"):   # the surrogate's basis blocks (session 26, h46)
+            self._wrap(su, "shift_invert", "surrogate shift-invert block")
         try:    # the warm block solves (engine/plate/warm.py, session 26); absent in older trees
             from engine.plate.warm import COUNTS as warm_counts
         except ImportError:

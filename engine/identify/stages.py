@@ -30,6 +30,7 @@ import numpy as np
 
 from ..fit import (DataBlock, Estimate, IdentificationError, Prior, bayesian_update, checks, estimate,
                    laplace, nelder_mead_fit, whitened_jacobian)
+from ..fit.estimators import STOP_CHI2
 from ..fit.lm import STALLED
 from ..laminate import PhysicsError
 from ..plate import PlateModel, mode_families
@@ -75,7 +76,8 @@ def fit_blocks(ctx: FitContext, blocks: Sequence[DataBlock], names: Sequence[str
     def fit(start_: Mapping[str, float], give_up: float | None = None) -> Estimate:
         try:
             if method == "lm":
-                return estimate(blocks, names, start_, prior=prior, max_iter=max_iter, give_up=give_up)
+                return estimate(blocks, names, start_, prior=prior, max_iter=max_iter, give_up=give_up,
+                                dtol=STOP_CHI2)
             if method == "bayes":
                 return bayesian_update(blocks, names, start_,
                                        prior_rel_std=0.5 if prior is None else prior, max_iter=max_iter)

@@ -172,7 +172,8 @@ def test_birge_ratio_widens_understated_sigmas():
     # issue 12: the std grows as sqrt(chi^2/nu), nu = 40 points - 2 parameters
     np.testing.assert_allclose(scaled.std / plain.std, np.sqrt(chi2_n * 40 / 38), rtol=0.02)
     assert scaled.fit["std_scale"] == pytest.approx(np.sqrt(chi2_n * 40 / 38), rel=0.02)
-    np.testing.assert_allclose(scaled.values, plain.values, rtol=1e-6)
+    # the same minimum: each fit stops within 0.01 of its own std of it (engine.fit.STOP_CHI2)
+    assert np.all(np.abs(scaled.values - plain.values) <= 0.01 * (plain.std + scaled.std))
     assert any("Birge" in m for m in scaled.warnings)
 
 

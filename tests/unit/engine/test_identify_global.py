@@ -13,22 +13,23 @@ from labid.inputs.specimen import load_specimen
 TRUE = {"E1": 136.7e9, "E2": 9.0e9, "nu12": 0.30, "G12": 5.0e9, "G13": 5.08e9, "G23": 3.16e9}
 
 
-def test_ritz_surrogate_is_exact_on_its_basis_points():
-    """The basis spans the FE modes of each basis point, so there the Ritz frequencies
-    equal the FE ones (to 1e-5: directions where the basis vectors are nearly dependent,
-    eigenvalues of V'MV below 1e-12 of the largest, are dropped); in between they are
-    upper bounds (Rayleigh-Ritz) within 1 %."""
+def test_ritz_surrogate_is_exact_at_its_start_and_an_upper_bound_within_the_peaks_sigma():
+    """The basis holds the FE modes of the start (there the Ritz frequencies equal the FE
+    ones to 1e-5: nearly dependent directions, eigenvalues of V'MV below 1e-12 of the
+    largest, are dropped) and one shift-invert block per raised constant; elsewhere the
+    Ritz values are upper bounds (Rayleigh-Ritz) within 3e-4 (measured 1.8e-4 at E2 + 30 %,
+    2.1e-4 in between; a fifth of the peaks' 0.1 % sigma). The start's modes alone are
+    7.7e-4 off at E2 + 30 %."""
     spec = load_specimen("cfrp")
     model = PlateModel.build(spec.laminate, spec.length, spec.width)
     start = dict(TRUE)
     sur = RitzSurrogate(model, start, ("E1", "E2", "G12"), 12)
-    for p in (start, {**start, "E2": start["E2"] * 1.3}):
-        fe = model.solve(12, params=p).frequencies_hz
-        np.testing.assert_allclose(sur.frequencies_hz(p), fe, rtol=1e-5)
+    np.testing.assert_allclose(sur.frequencies_hz(start), model.solve(12, params=start).frequencies_hz, rtol=1e-5)
     mid = {**start, "E1": start["E1"] * 0.8, "G12": start["G12"] * 1.15}
-    fe = model.solve(12, params=mid).frequencies_hz
-    ritz = sur.frequencies_hz(mid)
-    assert np.all(ritz >= fe * (1 - 1e-9)) and np.all(ritz <= fe * 1.01)
+    for p in ({**start, "E2": start["E2"] * 1.3}, {**start, "G12": start["G12"] * 1.3}, mid):
+        fe = model.solve(12, params=p).frequencies_hz
+        ritz = sur.frequencies_hz(p)
+        assert np.all(ritz >= fe * (1 - 1e-9)) and np.all(ritz <= fe * (1 + 3e-4))
 
 
 @pytest.mark.slow
