@@ -101,14 +101,12 @@ def _safe_inverse(A: np.ndarray) -> np.ndarray:
     """Inverse of a symmetric PSD matrix; null directions get infinite variance."""
     w, V = np.linalg.eigh(A)
     tol = max(w.max(initial=0.0), 0.0) * 1e-13
-    inv_w = np.where(w > tol, 1.0 / np.where(w > tol, w, 1.0), np.inf)
-    with np.errstate(invalid="ignore"):
-        C = (V * inv_w) @ V.T
-    # a parameter touching a null direction has infinite variance
     null = w <= tol
-    if np.any(null):
+    # the inverse on the range (a parameter outside every null direction keeps its finite
+    # variance there: inf x 0 from a null direction made it 0 before session 26)
+    C = (V[:, ~null] / w[~null]) @ V[:, ~null].T
+    if np.any(null):    # a parameter touching a null direction has infinite variance
         touched = np.any(np.abs(V[:, null]) > 1e-8, axis=1)
-        C = np.where(np.isfinite(C), C, 0.0)
         C[touched, :] = np.where(np.eye(len(w), dtype=bool)[touched, :], np.inf, C[touched, :])
     return C
 

@@ -214,3 +214,17 @@ def test_lm_follows_the_curved_rosenbrock_valley():
         est = estimate([blk], ("a", "b"), {"a": 0.8, "b": 3.0}, prior=None, max_iter=200)
         assert est.converged
         np.testing.assert_allclose(est.values, [3.0, 3.0], atol=1e-5)
+
+
+def test_laplace_keeps_the_variance_of_a_parameter_outside_the_null_space():
+    """J = [[2, 0, 0], [0, 1, 1]]: p0 is measured alone with weight 2 (variance exactly 1/4);
+    p1 and p2 are seen only as their sum (a null direction): infinite variance. Before
+    session 26 the null direction's inf x 0 made p0's variance 0 (a perfectly known constant)."""
+    from engine.fit import laplace
+    cov = laplace([np.array([[2.0, 0.0, 0.0], [0.0, 1.0, 1.0]])], np.zeros(3))
+    assert cov[0, 0] == pytest.approx(0.25, rel=1e-12)
+    assert np.isinf(cov[1, 1]) and np.isinf(cov[2, 2])
+    # with a prior of weight 1 on each the matrix is regular: the exact inverse
+    A = np.array([[5.0, 0, 0], [0, 2, 1], [0, 1, 2]])
+    np.testing.assert_allclose(laplace([np.array([[2.0, 0, 0], [0, 1, 1]])], np.ones(3)), np.linalg.inv(A),
+                               rtol=1e-12, atol=1e-15)
