@@ -395,6 +395,7 @@ class IdentificationView(QWidget):
         self.ident_plot.clear()
         blocks = (out.get("identifiability") or {}).get("blocks") or {}
         ax = self.ident_plot.getAxis("bottom")
+        ax.enableAutoSIPrefix(False)      # category ticks: no "(x0.001)" scale on a narrow range
         ax.setTicks([[(i, n) for i, n in enumerate(names)]])
         thr = (out.get("identifiability") or {}).get("rel_threshold")
         for k, (bname, b) in enumerate(blocks.items()):
@@ -402,11 +403,14 @@ class IdentificationView(QWidget):
             y = np.array([max(_num(rs_.get(n)), 1e-12) for n in names])
             x = np.arange(len(names)) + 0.12 * (k - (len(blocks) - 1) / 2)
             c = COLORS[k % len(COLORS)]
-            self.ident_plot.plot(x, y, pen=None, symbol=SYMBOLS[k % len(SYMBOLS)], symbolSize=9,
-                                 symbolBrush=c, symbolPen=None, name=f"{bname} alone")
+            ok = np.isfinite(y)    # a constant without a rel_std is left out, not drawn as NaN
+            if ok.any():
+                self.ident_plot.plot(x[ok], y[ok], pen=None, symbol=SYMBOLS[k % len(SYMBOLS)], symbolSize=9,
+                                     symbolBrush=c, symbolPen=None, name=f"{bname} alone")
         comb = np.array([max(_num((idp.get(n) or {}).get("rel_std")), 1e-12) for n in names])
-        if names:
-            self.ident_plot.plot(np.arange(len(names)), comb, pen=None, symbol="star", symbolSize=12,
+        ok = np.isfinite(comb)
+        if ok.any():
+            self.ident_plot.plot(np.arange(len(names))[ok], comb[ok], pen=None, symbol="star", symbolSize=12,
                                  symbolBrush="k", name="all data")
         if isinstance(thr, (int, float)) and names:
             self.ident_plot.addItem(pg.InfiniteLine(math.log10(thr), angle=0,
