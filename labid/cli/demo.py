@@ -28,8 +28,8 @@ from .. import services
 from ..base.errors import UserError
 from ..base.summary import display_unit
 from ..inputs.specimen import load_specimen
-from ..report.certificate import write_report
-from ..report.plots import plot_gap
+from ..report.certificate import REPORT_SHOTS, report_figures, write_report
+from ..report.figures import fig_gap
 from .options import MAX_SEED, MAX_SHOTS, add_json_option, count
 
 DATASETS = ("modal", "waves", "combined")
@@ -132,6 +132,17 @@ def _identify_task(doc: dict, out: Path, src: str, start: dict, budget: bool):
     t0, c0 = time.perf_counter(), time.process_time()
     res = services.run_identification(doc, base_dir=out, src=src, start=start, budget=budget)
     return res, time.perf_counter() - t0, time.process_time() - c0
+
+
+def _report_figures_task(rd: services.RunData) -> dict:
+    """The report's figures that the diagnosis does not change, from the run's data read before
+    the diagnosis is stored (the worker never opens the run file the main process writes)."""
+    return report_figures(rd)
+
+
+def _gap_figure_task(gap: dict, path: Path) -> str | None:
+    """``gap.png`` written and the report's gap figure (base64 PNG), from one drawing."""
+    return fig_gap(gap, path)
 
 
 class _Later:
@@ -273,14 +284,18 @@ def _run_demo(out: Path, run: Path, spec, truth: dict, seed: int, hits: int | No
     report(table)
 
     step("5/6 diagnosing the sim-to-real gap; writing figures and the report")
+    # the report's spectrum, scalogram and dispersion figures do not depend on the diagnosis:
+    # drawn in the worker (if any) from the run's data read here, while the diagnosis runs; the
+    # gap figure is drawn there too while this process stores the diagnosis (issue 29, session 26)
+    figures_job = _submit(pool, _report_figures_task, services.open_run(run, max_shots=REPORT_SHOTS))
     # from the combined identification just reported (same features, start and options): the
     # diagnosis judges that fit, and does not repeat it (~10 s CPU, bench/RESULTS.md)
     gap = services.run_diagnosis(features, base_dir=out, src=str(features_path), start=DATASHEET_START,
                                  estimate=results.get("combined"))
-    plot_gap(gap, out / "gap.png")
+    gap_job = _submit(pool, _gap_figure_task, gap, out / "gap.png")
     services.store_result(run, "diagnosis", gap, by="labid demo")
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
-    html = write_report(run, out / "report.html")
+    html = write_report(run, out / "report.html", figures={**figures_job.result(), "gap": gap_job.result()})
     if waves_only_job is None:
         waves_only = _waves_only(out, seed, step, report)
     else:
