@@ -22,7 +22,7 @@ import time
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 from .. import services
 from ..base.errors import UserError
@@ -156,6 +156,25 @@ def _gap_figure_task(gap: dict, path: Path) -> str | None:
     return fig_gap(gap, path)
 
 
+class _Awaited(Mapping):
+    """The report's figures, each read from its job when the report places it (the report's
+    text before it is written meanwhile)."""
+
+    def __init__(self, jobs: dict[str, Callable[[], Any]]):
+        self.jobs, self.got = jobs, {}
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self.got:
+            self.got[key] = self.jobs[key]()
+        return self.got[key]
+
+    def __iter__(self):
+        return iter(self.jobs)
+
+    def __len__(self) -> int:
+        return len(self.jobs)
+
+
 class _Later:
     """A finished computation with the interface of a Future (the single-process path)."""
 
@@ -163,7 +182,10 @@ class _Later:
         self.fn, self.args = fn, args
 
     def result(self) -> Any:
-        return self.fn(*self.args)
+        """``fn(*args)``, computed on the first call only."""
+        if self.fn is not None:
+            self.value, self.fn, self.args = self.fn(*self.args), None, ()
+        return self.value
 
 
 def _submit(pool: ProcessPoolExecutor | None, fn: Callable, *args) -> Future | _Later:
@@ -187,7 +209,8 @@ class _Guarded:
         try:
             return self.fut.result()
         except BrokenProcessPool:
-            return self.fn(*self.args)
+            self.fut = _Later(self.fn, *self.args)     # computed here, once
+            return self.fut.result()
 
 
 def _pool(workers: int) -> ProcessPoolExecutor | None:
@@ -308,7 +331,10 @@ def _run_demo(out: Path, run: Path, spec, truth: dict, seed: int, hits: int | No
     gap_job = _submit(pool, _gap_figure_task, gap, out / "gap.png")
     services.store_result(run, "diagnosis", gap, by="labid demo")
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
-    html = write_report(run, out / "report.html", figures={**figures_job.result(), "gap": gap_job.result()})
+    figures = _Awaited({**{k: (lambda k=k: figures_job.result()[k]) for k in ("spectrum", "scalogram", "dispersion")},
+                        "gap": gap_job.result})
+    html = write_report(run, out / "report.html", figures=figures)
+    gap_job.result()                               # gap.png written, whatever the report placed
     if waves_only_job is None:
         waves_only = _waves_only(out, seed, step, report)
     else:

@@ -30,7 +30,7 @@ import json
 import time
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from .. import services
 from ..base import atomic
@@ -227,7 +227,7 @@ def report_figures(rd: RunData) -> dict[str, str | None]:
 REPORT_SHOTS = 20
 
 
-def build_report(run: str | Path, identification: int | None = None, figures: dict | None = None) -> str:
+def build_report(run: str | Path, identification: int | None = None, figures: Mapping | None = None) -> str:
     """The HTML text of the report of run file ``run``; ``identification``: the number of the
     kept identification it certifies (default: the newest). ``figures``: figures drawn already
     (:func:`report_figures` of this run's data and ``"gap"``: ``figures.fig_gap`` of its stored
@@ -246,9 +246,9 @@ def build_report(run: str | Path, identification: int | None = None, figures: di
     revision = str(fields.get("revision", "0"))
     appendix: list[tuple[str, str]] = []
     figs = Figures()
-    drawn = dict(figures or {})
-    if identification is not None or not {"spectrum", "scalogram", "dispersion"} <= drawn.keys():
-        drawn.update(report_figures(rd))      # (drawn for another identification: not this one's)
+    drawn: Mapping = figures or {}             # (read when placed: a Mapping may still be drawing them)
+    if identification is not None or not {"spectrum", "scalogram", "dispersion"} <= set(drawn):
+        drawn = {**drawn, **report_figures(rd)}   # (given ones: not for another identification)
     parts = ["<h1>Test report: elastic constants of a composite plate</h1>",
              header_block(rd, run, fields, number),
              "<h2>1. Specimen</h2>", section_specimen(rd, fields),
@@ -293,7 +293,7 @@ def build_report(run: str | Path, identification: int | None = None, figures: di
 
 
 def write_report(run: str | Path, out: str | Path | None = None, identification: int | None = None,
-                 figures: dict | None = None) -> str:
+                 figures: Mapping | None = None) -> str:
     """Write the report of ``run`` to ``out`` (default: RUN.html next to it); returns the path.
     ``identification``: the kept identification it certifies (default: the newest);
     ``figures``: as :func:`build_report`."""
