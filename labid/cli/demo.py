@@ -22,14 +22,14 @@ import time
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 from .. import services
 from ..base.errors import UserError
 from ..base.summary import display_unit
 from ..inputs.specimen import load_specimen
-from ..report.certificate import write_report
-from ..report.plots import plot_gap
+from ..report.certificate import REPORT_SHOTS, report_figures, write_report
+from ..report.figures import fig_gap
 from .options import MAX_SEED, MAX_SHOTS, add_json_option, count
 
 DATASETS = ("modal", "waves", "combined")
@@ -134,6 +134,47 @@ def _identify_task(doc: dict, out: Path, src: str, start: dict, budget: bool):
     return res, time.perf_counter() - t0, time.process_time() - c0
 
 
+def _report_figures_task(rd: services.RunData) -> dict:
+    """The report's figures that the diagnosis does not change, from the run's data read before
+    the diagnosis is stored (the worker never opens the run file the main process writes)."""
+    return report_figures(rd)
+
+
+def _warm_figures_task() -> None:
+    """Import pyplot and draw one tiny figure (fonts loaded): ~0.7 s CPU the worker spends while
+    the main process stores the identifications, not later on step 5's critical path."""
+    from ..report.figures import fig_png  # noqa: PLC0415 - the worker's, not the main process'
+    from ..report.plots import pyplot  # noqa: PLC0415
+
+    fig, ax = pyplot().subplots(figsize=(1, 1))
+    ax.set_title("warm-up")
+    fig_png(fig)
+
+
+def _gap_figure_task(gap: dict, path: Path) -> str | None:
+    """``gap.png`` written and the report's gap figure (base64 PNG), from one drawing."""
+    return fig_gap(gap, path)
+
+
+class _Awaited(Mapping):
+    """The report's figures, each read from its job when the report places it (the report's
+    text before it is written meanwhile)."""
+
+    def __init__(self, jobs: dict[str, Callable[[], Any]]):
+        self.jobs, self.got = jobs, {}
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self.got:
+            self.got[key] = self.jobs[key]()
+        return self.got[key]
+
+    def __iter__(self):
+        return iter(self.jobs)
+
+    def __len__(self) -> int:
+        return len(self.jobs)
+
+
 class _Later:
     """A finished computation with the interface of a Future (the single-process path)."""
 
@@ -141,7 +182,10 @@ class _Later:
         self.fn, self.args = fn, args
 
     def result(self) -> Any:
-        return self.fn(*self.args)
+        """``fn(*args)``, computed on the first call only."""
+        if self.fn is not None:
+            self.value, self.fn, self.args = self.fn(*self.args), None, ()
+        return self.value
 
 
 def _submit(pool: ProcessPoolExecutor | None, fn: Callable, *args) -> Future | _Later:
@@ -165,7 +209,8 @@ class _Guarded:
         try:
             return self.fut.result()
         except BrokenProcessPool:
-            return self.fn(*self.args)
+            self.fut = _Later(self.fn, *self.args)     # computed here, once
+            return self.fut.result()
 
 
 def _pool(workers: int) -> ProcessPoolExecutor | None:
@@ -249,6 +294,8 @@ def _run_demo(out: Path, run: Path, spec, truth: dict, seed: int, hits: int | No
             jobs[ds] = _Later(_identify_task, doc, out, str(features_path), start, True)
         else:
             jobs[ds] = _submit(pool, _identify_task, doc, out, str(features_path), start, False)
+    if pool is not None:
+        _submit(pool, _warm_figures_task)          # after the worker's two fits, before step 5
     combined = jobs["combined"].result()           # here, while the worker runs the other two
     results: dict[str, services.Identification] = {}
     for ds in DATASETS:
@@ -273,14 +320,21 @@ def _run_demo(out: Path, run: Path, spec, truth: dict, seed: int, hits: int | No
     report(table)
 
     step("5/6 diagnosing the sim-to-real gap; writing figures and the report")
+    # the report's spectrum, scalogram and dispersion figures do not depend on the diagnosis:
+    # drawn in the worker (if any) from the run's data read here, while the diagnosis runs; the
+    # gap figure is drawn there too while this process stores the diagnosis (issue 29, session 26)
+    figures_job = _submit(pool, _report_figures_task, services.open_run(run, max_shots=REPORT_SHOTS))
     # from the combined identification just reported (same features, start and options): the
     # diagnosis judges that fit, and does not repeat it (~10 s CPU, bench/RESULTS.md)
     gap = services.run_diagnosis(features, base_dir=out, src=str(features_path), start=DATASHEET_START,
                                  estimate=results.get("combined"))
-    plot_gap(gap, out / "gap.png")
+    gap_job = _submit(pool, _gap_figure_task, gap, out / "gap.png")
     services.store_result(run, "diagnosis", gap, by="labid demo")
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
-    html = write_report(run, out / "report.html")
+    figures = _Awaited({**{k: (lambda k=k: figures_job.result()[k]) for k in ("spectrum", "scalogram", "dispersion")},
+                        "gap": gap_job.result})
+    html = write_report(run, out / "report.html", figures=figures)
+    gap_job.result()                               # gap.png written, whatever the report placed
     if waves_only_job is None:
         waves_only = _waves_only(out, seed, step, report)
     else:

@@ -30,7 +30,7 @@ import json
 import time
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from .. import services
 from ..base import atomic
@@ -213,10 +213,26 @@ class Figures:
         return figure(png, self.n, caption)
 
 
-def build_report(run: str | Path, identification: int | None = None) -> str:
+def report_figures(rd: RunData) -> dict[str, str | None]:
+    """The figures that do not depend on the diagnosis (base64 PNG or None: spectrum, scalogram,
+    dispersion), drawn from ``rd`` (``services.open_run(run, max_shots=REPORT_SHOTS)``); the demo
+    draws them in its second process while the diagnosis runs (issue 29)."""
+    feats = features_of(rd)
+    return {"spectrum": fig_spectrum(rd, feats) if rd.hammer else None,
+            "scalogram": fig_scalogram(rd, feats) if rd.wave else None,
+            "dispersion": fig_dispersion(rd, feats)}
+
+
+#: shots of each kind the report reads (its spectrum and scalogram)
+REPORT_SHOTS = 20
+
+
+def build_report(run: str | Path, identification: int | None = None, figures: Mapping | None = None) -> str:
     """The HTML text of the report of run file ``run``; ``identification``: the number of the
-    kept identification it certifies (default: the newest)."""
-    rd = services.open_run(run, max_shots=20)
+    kept identification it certifies (default: the newest). ``figures``: figures drawn already
+    (:func:`report_figures` of this run's data and ``"gap"``: ``figures.fig_gap`` of its stored
+    diagnosis); the missing ones are drawn here."""
+    rd = services.open_run(run, max_shots=REPORT_SHOTS)
     if identification is not None and not isinstance(
             chosen := services.read_result(run, "identification", identification), dict):
         kept = [r["number"] for r in services.result_history(run, "identification")]
@@ -230,6 +246,9 @@ def build_report(run: str | Path, identification: int | None = None) -> str:
     revision = str(fields.get("revision", "0"))
     appendix: list[tuple[str, str]] = []
     figs = Figures()
+    drawn: Mapping = figures or {}             # (read when placed: a Mapping may still be drawing them)
+    if identification is not None or not {"spectrum", "scalogram", "dispersion"} <= set(drawn):
+        drawn = {**drawn, **report_figures(rd)}   # (given ones: not for another identification)
     parts = ["<h1>Test report: elastic constants of a composite plate</h1>",
              header_block(rd, run, fields, number),
              "<h2>1. Specimen</h2>", section_specimen(rd, fields),
@@ -239,7 +258,7 @@ def build_report(run: str | Path, identification: int | None = None) -> str:
     if not rd.hammer:
         parts.append(note("no hammer shots in this run"))
     else:
-        parts.append(figs.add(fig_spectrum(rd, feats), "Summed normalised spectrum of the hammer hits "
+        parts.append(figs.add(drawn["spectrum"], "Summed normalised spectrum of the hammer hits "
                               "(dimensionless indicator, log scale) against frequency (Hz), with the picked "
                               "resonances (dashed) and the identified model's frequencies (triangles).",
                               "no spectrum"))
@@ -247,18 +266,18 @@ def build_report(run: str | Path, identification: int | None = None) -> str:
         parts.append(section_picks(feats, ident, appendix))
         parts.append(section_damping(feats, ident, appendix))
     parts.append("<h2>5. Scalogram</h2>")
-    parts.append(figs.add(fig_scalogram(rd, feats) if rd.wave else None,
+    parts.append(figs.add(drawn["scalogram"],
                           "Scalogram |CWT| (colour bar: magnitude in the channel's unit) of the first wave shot, time after the "
                           "trigger (µs) against frequency (kHz), with the picked arrival ridge.",
                           "no wave shots in this run"))
     parts.append("<h2>6. Dispersion fit</h2>")
-    parts.append(figs.add(fig_dispersion(rd, feats), "Measured group velocities (m/s, error bars ±σ) against "
+    parts.append(figs.add(drawn["dispersion"], "Measured group velocities (m/s, error bars ±σ) against "
                           "frequency (kHz), with the SAFE curves at the nominal and the identified constants.",
                           "no group velocities in this run"))
     gap_text, gap = section_gap(rd)
     parts += ["<h2>7. Gap diagnosis</h2>", gap_text]
     if gap is not None:
-        png = fig_gap(gap)
+        png = drawn["gap"] if "gap" in drawn else fig_gap(gap)
         if png:
             parts.append(figs.add(png, "Gap (rms of residual/σ) before and after modelling each candidate "
                                        "effect.", ""))
@@ -273,10 +292,12 @@ def build_report(run: str | Path, identification: int | None = None) -> str:
             f"</title><style>{css}</style></head><body>{''.join(parts)}</body></html>\n")
 
 
-def write_report(run: str | Path, out: str | Path | None = None, identification: int | None = None) -> str:
+def write_report(run: str | Path, out: str | Path | None = None, identification: int | None = None,
+                 figures: Mapping | None = None) -> str:
     """Write the report of ``run`` to ``out`` (default: RUN.html next to it); returns the path.
-    ``identification``: the kept identification it certifies (default: the newest)."""
+    ``identification``: the kept identification it certifies (default: the newest);
+    ``figures``: as :func:`build_report`."""
     out = Path(out) if out else Path(run).with_suffix(".html")
-    text = build_report(run, identification)
+    text = build_report(run, identification, figures)
     atomic.write_text(out, text, key="--out")    # temp + rename (issue 15)
     return str(out)

@@ -13,14 +13,16 @@ import base64
 import html
 import io
 import tomllib
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .. import services
+from ..base.errors import UserError
 from ..services import IDENT_GROUPS, RunData, lookup
 from ..inputs.specimen import specimen_from_dict
-from .plots import gap_figure, pyplot
+from .plots import gap_figure, pyplot, save_figure
 
 
 def waves_list(w: Any) -> list[dict]:
@@ -153,10 +155,19 @@ def laminate_of(rd: RunData):
         return None
 
 
-def fig_gap(gap: dict) -> str | None:
-    """The diagnosis' figure (``labid.report.plots.gap_figure``, as ``labid diagnose --plot``)."""
+def fig_gap(gap: dict, path: str | Path | None = None) -> str | None:
+    """The diagnosis' figure (``labid.report.plots.gap_figure``, as ``labid diagnose --plot``);
+    ``path``: also written there (``plot_gap``'s file), from the same drawing (the demo: the
+    figure is laid out once, ~0.6 s less)."""
     fig = gap_figure(gap)
-    return None if fig is None else fig_png(fig)
+    if fig is None:
+        if path is not None:
+            raise UserError("the diagnosis holds no residuals, groups or effects to draw", file=str(path),
+                            key="--plot")
+        return None
+    if path is not None:
+        save_figure(fig, path)
+    return fig_png(fig)
 
 
 def scalar(v: Any) -> float | None:
