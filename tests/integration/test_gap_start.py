@@ -39,8 +39,12 @@ def test_features_identify_fits_consistently_give_none_from_the_same_estimate():
     chi2_identify = sum(r["chi2"] for r in est.residuals.values())
     res = run_diagnosis(doc, names=NAMES)
     assert res["identification"]["parameters"] == list(NAMES)
-    for n in NAMES:      # the diagnosis starts exactly where identify ends
-        assert res["constants"]["before"][n] == pytest.approx(est.params[n], rel=1e-12)
+    # the diagnosis starts where identify ends: not bit for bit, since the plate's warm
+    # eigen-solve (engine.plate.warm, certified to 1e-10) starts from the model's last solve
+    # and two identifications in one process agree to ~1e-11 (2e-11 seen in CI); another fit
+    # would end its own tolerance away (>= 1e-7)
+    for n in NAMES:
+        assert res["constants"]["before"][n] == pytest.approx(est.params[n], rel=1e-9)
     g = res["gap"]
     # same residuals, whitened with the measured sigmas plus a model allowance: chi^2 can only drop
     assert g["chi2_before"] <= chi2_identify * (1 + 1e-9)
@@ -140,7 +144,7 @@ def test_cli_diagnose_from_identify_s_json_result(tmp_path, capsys):
     assert main(["diagnose", str(f), "--params", "E1,E2,G12", "--estimate", str(ident), "--json", str(d2),
                  "--quiet"]) == 0
     r1, r2 = json.loads(d1.read_text()), json.loads(d2.read_text())
-    assert r2["constants"]["before"] == pytest.approx(r1["constants"]["before"], rel=1e-12)
+    assert r2["constants"]["before"] == pytest.approx(r1["constants"]["before"], rel=1e-9)  # warm solves, above
     assert r2["verdict"] == r1["verdict"] == "sensor_mass"
     capsys.readouterr()
     other = tmp_path / "other.json"

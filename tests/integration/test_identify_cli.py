@@ -217,7 +217,9 @@ def test_multi_start_equals_single_runs_on_combined_data():
         est = run(prob, ("E", "G"), st)
         assert r["converged"] and est.converged
         for n in ("E", "G"):
-            assert r["values"][n] == pytest.approx(est.params[n], rel=1e-12)
+            # 1e-9: the plate's warm eigen-solve starts from the model's last solve (agrees
+            # with a cold one to 1e-10, not bit for bit; engine.plate.warm)
+            assert r["values"][n] == pytest.approx(est.params[n], rel=1e-9)
             # modal data from the reference mesh (not the model's): the corrected model's
             # remaining discretisation error (~1e-6 here) moves the estimate by as much
             assert r["values"][n] == pytest.approx(AL[n], rel=1e-4)
