@@ -1,7 +1,9 @@
 """PlateModel: a free-free laminated Mindlin plate, precomputed once, solved per parameter set.
 
-Eigen solver: shift-invert Lanczos (ARPACK eigsh) with a small negative shift,
-SuperLU factorisation of K - sigma M. When B = 0 and I2 = 0 (symmetric
+Eigen solver: shift-invert with the shift at -0.1 of the plate's frequency scale and a
+SuperLU factorisation of K - sigma M: a certified warm block solve from the model's last
+modes when the constants moved little (engine.plate.warm), else ARPACK eigsh (Lanczos).
+When B = 0 and I2 = 0 (symmetric
 layups) the bending (w0, bx, by) and membrane (u0, v0) blocks are solved
 apart. The six rigid-body modes are recognised by their mass-weighted
 projection on the analytic rigid-body vectors and excluded; exactly six must
