@@ -134,12 +134,6 @@ def _identify_task(doc: dict, out: Path, src: str, start: dict, budget: bool):
     return res, time.perf_counter() - t0, time.process_time() - c0
 
 
-def _report_figures_task(rd: services.RunData) -> dict:
-    """The report's figures that the diagnosis does not change, from the run's data read before
-    the diagnosis is stored (the worker never opens the run file the main process writes)."""
-    return report_figures(rd)
-
-
 def _warm_figures_task() -> None:
     """Import pyplot and draw one tiny figure (fonts loaded): ~0.7 s CPU the worker spends while
     the main process stores the identifications, not later on step 5's critical path."""
@@ -149,11 +143,6 @@ def _warm_figures_task() -> None:
     fig, ax = pyplot().subplots(figsize=(1, 1))
     ax.set_title("warm-up")
     fig_png(fig)
-
-
-def _gap_figure_task(gap: dict, path: Path) -> str | None:
-    """``gap.png`` written and the report's gap figure (base64 PNG), from one drawing."""
-    return fig_gap(gap, path)
 
 
 class _Awaited(Mapping):
@@ -323,12 +312,12 @@ def _run_demo(out: Path, run: Path, spec, truth: dict, seed: int, hits: int | No
     # the report's spectrum, scalogram and dispersion figures do not depend on the diagnosis:
     # drawn in the worker (if any) from the run's data read here, while the diagnosis runs; the
     # gap figure is drawn there too while this process stores the diagnosis (issue 29, session 26)
-    figures_job = _submit(pool, _report_figures_task, services.open_run(run, max_shots=REPORT_SHOTS))
+    figures_job = _submit(pool, report_figures, services.open_run(run, max_shots=REPORT_SHOTS))
     # from the combined identification just reported (same features, start and options): the
     # diagnosis judges that fit, and does not repeat it (~10 s CPU, bench/RESULTS.md)
     gap = services.run_diagnosis(features, base_dir=out, src=str(features_path), start=DATASHEET_START,
                                  estimate=results.get("combined"))
-    gap_job = _submit(pool, _gap_figure_task, gap, out / "gap.png")
+    gap_job = _submit(pool, fig_gap, gap, out / "gap.png")
     services.store_result(run, "diagnosis", gap, by="labid demo")
     report(f"gap: {gap['gap']['before']:.3g} -> {gap['gap']['after']:.3g}; verdict: {gap['verdict']}")
     figures = _Awaited({**{k: (lambda k=k: figures_job.result()[k]) for k in ("spectrum", "scalogram", "dispersion")},
