@@ -65,6 +65,20 @@ print(json.dumps({"cpu": cpu, "wall": w1 - w0, "ok": ok, "size": os.path.getsize
 """
 
 
+#: the timed child: result_history (the panel's and the report's list of kept results)
+HISTORY = r"""
+import json, os, sys, time
+from labid.runresults import result_history
+run, k = sys.argv[1], int(sys.argv[2])
+t0, w0 = os.times(), time.perf_counter()
+hist = result_history(run, "identification")
+w1, t1 = time.perf_counter(), os.times()
+cpu = sum(getattr(t1, a) - getattr(t0, a) for a in ("user", "system", "children_user", "children_system"))
+ok = [h["number"] for h in hist] == list(range(1, k + 1)) and all(h["by"] == "bench" for h in hist)
+print(json.dumps({"cpu": cpu, "wall": w1 - w0, "ok": ok}))
+"""
+
+
 def kept_run(demo_run: Path, ident: dict, k: int, out: Path) -> None:
     """``out``: the demo's run without identifications, plus ``k`` kept identifications."""
     with h5py.File(demo_run, "r") as src, h5py.File(out, "w", libver="latest") as dst:
@@ -89,6 +103,10 @@ def kept_run(demo_run: Path, ident: dict, k: int, out: Path) -> None:
             g["stored/number"][()] = n
 
 
+class Failed(Exception):
+    """A timed process that failed (its last line of stderr)."""
+
+
 def run_child(tree: Path, argv: list[str], cwd: Path) -> tuple[float, float, str]:
     """(CPU s, wall s, stdout) of one process: user+sys of it and of every child it waited
     for (the rusage of this process's waited children, before and after)."""
@@ -99,7 +117,8 @@ def run_child(tree: Path, argv: list[str], cwd: Path) -> tuple[float, float, str
     wall = time.perf_counter() - w0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if proc.returncode:
-        raise SystemExit(f"{argv[:3]} with {tree} failed:\n{proc.stderr[-2000:]}")
+        last = [ln for ln in proc.stderr.strip().splitlines() if ln.strip()][-1:] or ["?"]
+        raise Failed(f"exit {proc.returncode}: {last[0][-300:]}")
     return (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime), wall, proc.stdout
 
 
@@ -144,12 +163,16 @@ def main(argv=None) -> int:
         for k in kept:
             cpu = {lab: [] for lab, _ in trees}
             wall = {lab: [] for lab, _ in trees}
-            size, ok = {}, True
+            size, ok, fails = {}, True, {}
             for _ in range(a.reps):
                 for lab, tree in trees:
                     run = work / "run.h5"
                     shutil.copyfile(fixtures[k], run)
-                    _, _, out = run_child(tree, [str(script), str(run), str(data_file), str(k)], cwd)
+                    try:
+                        _, _, out = run_child(tree, [str(script), str(run), str(data_file), str(k)], cwd)
+                    except Failed as e:
+                        fails.setdefault(lab, str(e))
+                        continue
                     got = json.loads(out.strip().splitlines()[-1])
                     cpu[lab].append(got["cpu"])
                     wall[lab].append(got["wall"])
@@ -157,10 +180,35 @@ def main(argv=None) -> int:
                     ok &= got["ok"]
                     for p in work.glob(".run.h5*"):
                         p.unlink()
-            print(f"| {k} | " + " | ".join(f"{med(cpu[lab])} | {med(wall[lab])}" for lab, _ in trees)
-                  + f" | {fixtures[k].stat().st_size} -> " + ", ".join(str(size[lab]) for lab, _ in trees)
-                  + f" | {'numbers, history, JSON copy right' if ok else 'WRONG'} ({a.reps} reps, medians) |",
-                  flush=True)
+            print(f"| {k} | " + " | ".join(f"{med(cpu[lab])} | {med(wall[lab])}" if cpu[lab] else "failed | failed"
+                                             for lab, _ in trees)
+                  + f" | {fixtures[k].stat().st_size} -> " + ", ".join(str(size.get(lab, "-")) for lab, _ in trees)
+                  + f" | {'numbers, history, JSON copy right' if ok else 'WRONG'} ({a.reps} reps, medians)"
+                  + "".join(f"; {lab} failed: {msg}" for lab, msg in fails.items()) + " |", flush=True)
+        hscript = work / "history.py"
+        hscript.write_text(HISTORY)
+        print("\n### result_history of the kept identifications (own process; CPU incl. forked children)\n")
+        print("| kept | " + " | ".join(f"{lab} CPU s | {lab} wall s" for lab, _ in trees) + " | checks |")
+        print("|---" * (2 + 2 * len(trees)) + "|")
+        for k in kept:
+            cpu = {lab: [] for lab, _ in trees}
+            wall = {lab: [] for lab, _ in trees}
+            ok, fails = True, {}
+            for _ in range(a.reps):
+                for lab, tree in trees:
+                    try:
+                        _, _, out = run_child(tree, [str(hscript), str(fixtures[k]), str(k)], cwd)
+                    except Failed as e:
+                        fails.setdefault(lab, str(e))
+                        continue
+                    got = json.loads(out.strip().splitlines()[-1])
+                    cpu[lab].append(got["cpu"])
+                    wall[lab].append(got["wall"])
+                    ok &= got["ok"]
+            print(f"| {k} | " + " | ".join(f"{med(cpu[lab])} | {med(wall[lab])}" if cpu[lab] else "failed | failed"
+                                             for lab, _ in trees)
+                  + f" | {'numbers and writers right' if ok else 'WRONG'} ({a.reps} reps, medians)"
+                  + "".join(f"; {lab} failed: {msg}" for lab, msg in fails.items()) + " |", flush=True)
         print("\n### whole `labid identify features.json --quiet --json X` (own process, wait4 CPU)\n")
         print("| kept before | " + " | ".join(f"{lab} CPU s | {lab} wall s" for lab, _ in trees) + " | CPU of each run |")
         print("|---" * (2 + 2 * len(trees)) + "|")

@@ -28,8 +28,9 @@ of ``committed`` is written and flushed; rows past it (a shot cut short) are dro
 
 One writer at a time (issue 15): an ``"a"`` open takes the lock ``RUN.h5.lock``
 (``labid.store.lock``); a second writer, under any name, is refused in one line naming the
-holder. Results (``write_group``) go into a synced copy renamed over the file: a kill leaves
-the old file or the new one. Temporary files are ``mkstemp`` names beside the run, stale
+holder. Results (``write_group``, ``labid.store.results``) go into a synced copy renamed over the
+file: a kill leaves the old file or the new one. A kept result's predecessor is moved (an HDF5
+link move) to ``/results/history`` in that same copy: one copy per result, whatever the history. Temporary files are ``mkstemp`` names beside the run, stale
 ones removed under the lock; a run path that is a symbolic link is refused for writing.
 In one process, a writer's opens wait for readers of other threads (``labid.store.inprocess``).
 Full disk (issue 27): the bytes of every HDF5 write are reserved first (``labid.store.space``):
