@@ -58,54 +58,41 @@ def store_result(run: str | Path, name: str, data: Mapping, *, replace: bool = F
     A kept result (``KEPT``) is numbered (``stored``: number, time, ``by``) and the one it
     follows is moved to ``/results/history/<name>/<number>``, unless ``replace`` (then it is
     overwritten, and the returned text says so). Other results are overwritten."""
-    from .store import RunStore, decode_result  # here: h5py, not needed when no run is at hand
+    from .store import RunStore  # here: h5py, not needed when no run is at hand
     data = dict(data)
     with RunStore(run, "a") as st:
         if not kept(name):
             st.write_result(name, data)
             return f"/results/{name}"
-        names = st.result_names()
-        old = st.read_group(name) if name in names else None
-        try:
-            hist = st.read_group(f"{HISTORY_GROUP}/{name}") if HISTORY_GROUP in names else {}
-        except KeyError:
-            hist = {}
-        numbers = [int(k) for k in hist if str(k).isdigit()]
-        n_old = _number_of(decode_result(old)) if old is not None else None
-        if old is not None and n_old is None:
-            n_old = max(numbers, default=0) + 1          # a result stored before numbering
-        n = max(numbers + [n_old or 0]) + (0 if replace and old is not None else 1)
-        moved = None
-        if old is not None and not replace:
-            moved = f"/results/{HISTORY_GROUP}/{name}/{n_old}"
-            st.write_group(f"{HISTORY_GROUP}/{name}/{n_old}", old)
+        # the numbers from group names and one integer, never the kept trees (issue 29, s27)
+        present, n_old, numbers = st.kept_numbers(name, f"{HISTORY_GROUP}/{name}")
+        if present and n_old is None:              # a JSON-only result, or one stored before numbering
+            n_old = _number_of(st.read_result(name))
+        if present and n_old is None:
+            n_old = max(numbers, default=0) + 1    # a result stored before numbering
+        n = max(numbers + [n_old or 0]) + (0 if replace and present else 1)
+        moved = f"{HISTORY_GROUP}/{name}/{n_old}" if present and not replace else None
         data["stored"] = {"number": n, "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "by": by}
-        st.write_result(name, data)
-    if replace and old is not None:
+        st.write_result(name, data, keep_as=moved)    # the older one moved aside in the same copy
+    if replace and present:
         return f"/results/{name}, no. {n}: replaced the one stored before (--replace)"
-    return f"/results/{name}, no. {n}" + (f"; no. {n_old} kept at {moved}" if moved else "")
+    return f"/results/{name}, no. {n}" + (f"; no. {n_old} kept at /results/{moved}" if moved else "")
 
 
 def result_history(run: str | Path, name: str) -> list[dict]:
     """The kept results ``name`` of ``run``, oldest first: ``{number, time, by, path}`` each
     (the newest at ``/results/<name>``, the others under ``/results/history/<name>``)."""
-    from .store import RunStore, decode_result  # here: h5py, not needed when no run is at hand
-    out = []
-    with RunStore(run, "r") as st:
-        names = st.result_names()
-        try:
-            hist = st.read_group(f"{HISTORY_GROUP}/{name}") if HISTORY_GROUP in names else {}
-        except KeyError:
-            hist = {}
-        for k, g in hist.items():
-            meta = (decode_result(g) or {}).get("stored") or {} if isinstance(g, Mapping) else {}
-            out.append({"number": int(k), "time": meta.get("time"), "by": meta.get("by"),
-                        "path": f"/results/{HISTORY_GROUP}/{name}/{k}"})
-        if name in names:
-            cur = decode_result(st.read_group(name))
-            meta = (cur.get("stored") or {}) if isinstance(cur, Mapping) else {}
-            out.append({"number": meta.get("number", len(out) + 1), "time": meta.get("time"), "by": meta.get("by"),
-                        "path": f"/results/{name}"})
+    from .store import RunStore  # here: h5py, not needed when no run is at hand
+    with RunStore(run, "r") as st:          # the "stored" metadata alone, never the kept trees
+        present, _, numbers = st.kept_numbers(name, f"{HISTORY_GROUP}/{name}")
+        paths = [f"{HISTORY_GROUP}/{name}/{k}" for k in sorted(numbers)] + ([name] if present else [])
+        meta = st.read_stored(paths)
+    out = [{"number": k, "time": meta[p].get("time"), "by": meta[p].get("by"), "path": f"/results/{p}"}
+           for k, p in zip(sorted(numbers), paths)]
+    if present:
+        m = meta[name]
+        out.append({"number": m.get("number", len(out) + 1), "time": m.get("time"), "by": m.get("by"),
+                    "path": f"/results/{name}"})
     return sorted(out, key=lambda r: r["number"])
 
 

@@ -166,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
             pass
     try:
         # a usage error is one line and exit 2 (argparse's SystemExit(2)), --help exit 0
-        if not any(str(a).startswith("--t") for a in argv):     # no --threads (nor an abbreviation)
+        if not threads_given(argv):             # else decided once --threads is parsed
             _threads_early()
         try:
             parser = build_parser(command if command != "?" else None)
@@ -191,6 +191,20 @@ def main(argv: list[str] | None = None) -> int:
     if owner:
         _ENDING["rc"] = rc
     return rc
+
+
+def threads_given(argv: list[str]) -> bool:
+    """True when ``argv`` may give ``--threads`` as argparse reads it: ``--threads`` or an
+    abbreviation of it (``--t`` ... ``--thread``), alone or as ``OPTION=VALUE``, before any
+    ``--`` (after it every word is positional). ``--total``, ``--truth``, ``--target-u``
+    are not it (the early decision was skipped for any word starting with ``--t``)."""
+    for a in map(str, argv):
+        if a == "--":
+            return False
+        opt = a.split("=", 1)[0]
+        if len(opt) >= 3 and "--threads".startswith(opt):
+            return True
+    return False
 
 
 def _threads_early() -> None:

@@ -3,8 +3,9 @@
 Public seam: ``RunStore`` (open, append shots, read shots, write/read results),
 ``decode_result`` (a results group -> its JSON copy), ``SCHEMA``, ``KINDS``,
 ``software_version``, ``WriterLock`` (one writer at a time: ``RUN.h5.lock``).
-``h5repair`` mends files left open by a killed writer (used by ``RunStore``
-itself); ``readonly`` is the read path that never writes; ``inprocess`` lets readers and
+``results`` holds ``RunStore``'s ``/results`` methods (a kept result's predecessor moved
+aside in the same file copy); ``h5repair`` mends files left open by a killed writer (used by
+``RunStore`` itself); ``readonly`` is the read path that never writes; ``inprocess`` lets readers and
 writers of one run in several threads of a process wait for each other.
 """
 from .lock import WriterLock

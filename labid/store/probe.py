@@ -10,8 +10,11 @@ and ``in_child(key, fn)`` runs a read (``RunStore.read_group``) there once per f
 and hands its value back. A child stopped by the bound means the library would not return:
 ``UserError``. Any other failure lets the caller read in-process, where its own checks say
 what is wrong in one line. Each file version (device, inode, size, modification time) is
-probed once, each group read in a child once; later reads are in-process. Where ``fork`` is
-missing, nothing is probed.
+probed once, each group read in a child once; later reads are in-process. A file this
+process wrote itself under the writer's lock (``carry``, at each result written and at
+close) keeps what was probed of the version it changed, and the groups it wrote count as
+read: it is not probed again (issue 29, session 27: ``labid identify`` forked a probe for
+each version of the run it had just written). Where ``fork`` is missing, nothing is probed.
 
 Cost (bench/RESULTS.md, issue 27): a fork of ~10 ms per file version and per results group.
 """
@@ -125,6 +128,27 @@ def probe(path: str | Path) -> None:
     if _fork(lambda: _read_metadata(path))[0] == "loop":
         raise _looping(path)
     _done.add(key)
+
+
+def carry(old: tuple | None, path: str | Path, written: tuple[str, ...] = (), moved: str | None = None) -> tuple | None:
+    """``path`` was changed by this process, holding the writer's lock, since it was at
+    identity ``old`` (None: this process created it): what was probed of that version
+    counts for the new one, except the group ``moved`` to (its ancestors and descendants:
+    they now hold a group that may never have been read), and the groups ``written`` (keys
+    as ``in_child``'s ``what``) count as read. Returns the new identity."""
+    new = identity(path)
+    if new is None or not hasattr(os, "fork"):
+        return new
+    n = len(new)
+    if old is None:
+        _done.add(new)
+    elif new != old:
+        def fresh(what: str) -> bool:
+            w = what.split("#")[0]
+            return moved is not None and (moved.startswith(w + "/") or w == moved or w.startswith(moved + "/"))
+        _done.update((*new, *k[n:]) for k in list(_done) if k[:n] == old and not (len(k) > n and fresh(k[n])))
+    _done.update((*new, w) for w in written)
+    return new
 
 
 def in_child(path: str | Path, what: str, fn: Callable[[], Any]) -> Any:

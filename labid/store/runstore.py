@@ -28,8 +28,9 @@ of ``committed`` is written and flushed; rows past it (a shot cut short) are dro
 
 One writer at a time (issue 15): an ``"a"`` open takes the lock ``RUN.h5.lock``
 (``labid.store.lock``); a second writer, under any name, is refused in one line naming the
-holder. Results (``write_group``) go into a synced copy renamed over the file: a kill leaves
-the old file or the new one. Temporary files are ``mkstemp`` names beside the run, stale
+holder. Results (``write_group``, ``labid.store.results``) go into a synced copy renamed over the
+file: a kill leaves the old file or the new one. A kept result's predecessor is moved (an HDF5
+link move) to ``/results/history`` in that same copy: one copy per result, whatever the history. Temporary files are ``mkstemp`` names beside the run, stale
 ones removed under the lock; a run path that is a symbolic link is refused for writing.
 In one process, a writer's opens wait for readers of other threads (``labid.store.inprocess``).
 Full disk (issue 27): the bytes of every HDF5 write are reserved first (``labid.store.space``):
@@ -59,16 +60,15 @@ from drivers.protocol import ChannelConfig, Record, Timing, Trigger
 
 from ..base.atomic import default_mode, temp_beside
 from ..base.errors import UserError
-from ..base.jsonio import to_jsonable
 from .h5repair import is_consistency_flag_error, repair
 from .inprocess import Reading, busy, changing
 from .lock import WriterLock, relock
-from .probe import in_child, probe
+from .probe import carry, identity, probe
 from .readonly import open_read_only
 from .tables import append_row, create_table, drop_uncommitted, init_file, read_records, software_version, text_of
 from .space import is_write_failure, poison, remove_stale, reserved, trim_file, write_failed
-from .tree import decode_result, json_default, not_written, read_json_copy, read_tree, replace_group, write_tree
-from .schema import check_result
+from .results import Results
+from .tree import json_default, write_tree
 from .validate import TABLES, check_run, damaged, reading
 
 #: suffixes of the temporary files a writer makes beside the run (removed under the lock)
@@ -81,11 +81,12 @@ _META_LEN = 4096
 _STR_LEN = 32
 
 
-class RunStore:
+class RunStore(Results):
     """One session file. ``mode``: "a" creates or resumes (appends), "r" read-only.
 
     Use as a context manager. Shots are appended with ``append_shot`` (each
-    flushed at once) and read back as ``drivers.protocol.Record`` objects.
+    flushed at once) and read back as ``drivers.protocol.Record`` objects; results
+    (``/results``) are written and read by the methods of ``labid.store.results``.
     """
 
     def __init__(self, path: str | Path, mode: str = "a"):
@@ -98,6 +99,7 @@ class RunStore:
         self._lock: WriterLock | None = None
         self._f: h5py.File | None = None
         self._reader: Reading | None = None      # registered while open (store.inprocess)
+        self._seen: tuple | None = None          # identity probed or made by this writer (store.probe)
         if mode == "r":
             if not self.path.exists():
                 raise UserError("file not found; expected a run file (HDF5)", file=str(self.path))
@@ -141,6 +143,7 @@ class RunStore:
         remove_stale(self.path, TEMP_SUFFIXES)
         if self.path.exists():
             probe(self.path)
+            self._seen = identity(self.path)
             self._f = self._open_append()
             self._check_schema()
             check_run(self._f, str(self.path))
@@ -163,6 +166,7 @@ class RunStore:
                 trim_file(tmp)
                 os.chmod(tmp, default_mode())   # mkstemp made it 0600; a run file is shared as any file
                 os.replace(tmp, self.path)
+                self._seen = carry(None, self.path)
             finally:
                 tmp.unlink(missing_ok=True)
             relock(self.path)
@@ -241,6 +245,8 @@ class RunStore:
                     f.close()
                     if view is not None:
                         view.close()
+                    if self.mode == "a":          # what this writer changed is not probed again
+                        self._seen = carry(self._seen, self.path)
         finally:
             if self._lock is not None:
                 self._lock.release()
@@ -315,11 +321,6 @@ class RunStore:
         """The file's root attributes (schema version, NeXus class, software), strings decoded."""
         with self._reading():
             return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in self._f.attrs.items()}
-
-    def result_names(self) -> list[str]:
-        """Names of the groups under ``/results`` (``write_group``/``write_result``)."""
-        with self._reading():
-            return list(self._f["results"]) if "results" in self._f else []
 
     # -- shots ---------------------------------------------------------
     def declare(self, kind: str, channels: tuple[ChannelConfig, ...], timing: Timing,
@@ -430,65 +431,3 @@ class RunStore:
     def _shots(self, kind: str | None, limit: int | None) -> list[Record]:
         self._refresh()
         return read_records(self._f["shots"], kind, limit)
-
-    # -- results -------------------------------------------------------
-    def write_group(self, path: str, data: dict) -> None:
-        """Write a nested dict (arrays, scalars, strings, dicts) under ``/results/<path>``,
-        replacing any previous content of that group.
-
-        Crash-safe: written into a copy of the run (``.RUN.h5.XXXXXXXX.results``), synced,
-        then renamed over it; a kill at any moment leaves the earlier results intact.
-        ``UserError`` naming the file when the disk is full or read-only, or the run is
-        damaged (the run file is unchanged)."""
-        with changing(self.path):    # no reader of another thread opens it closed (store.inprocess)
-            with self._writing("closing the run before storing a result"):
-                self._normal()
-                self._handles = (None,)
-                self._f.flush()
-                self._f.close()
-            self._f = None
-            try:
-                replace_group(self.path, f"results/{path.strip('/')}", data)
-            finally:
-                relock(self.path)
-                self._f = h5py.File(self.path, "a", libver="latest", locking=False)
-
-    def write_result(self, path: str, data: dict) -> None:
-        """Write a result (nested dict) under ``/results/<path>`` twice over: its arrays and
-        scalars where HDF5 can hold them, and a plain-JSON copy in ``json`` (which
-        readers prefer); only the JSON copy when the structure does not fit HDF5."""
-        text = json.dumps(to_jsonable(data), allow_nan=False)
-        try:
-            self.write_group(path, {**data, "json": text})
-        except (ValueError, TypeError):
-            try:
-                self.write_group(path, {"json": text})
-            except (ValueError, TypeError) as e:     # even one string does not go in: damaged
-                raise not_written(self.path, e) from None
-
-    def read_group(self, path: str) -> dict:
-        """The nested dict written by ``write_group`` (arrays as numpy, strings as str)."""
-        full = f"results/{path.strip('/')}"
-
-        def read():
-            with self._reading():
-                return read_tree(self._f[full]) if full in self._f else None
-        tree = in_child(self.path, full, read)    # a group the library would loop on: refused (store.probe)
-        if tree is None:
-            raise KeyError(f"no results group {path!r} in {self.path}")
-        check_result(path.strip("/"), decode_result(tree), str(self.path))
-        return tree
-
-    def read_result(self, path: str) -> Any:
-        """``/results/<path>``: its JSON copy when it has one (read alone, in a child the first
-        time as ``read_group``), else ``read_group``'s; checked against the shape labid writes."""
-        key = path.strip("/")
-
-        def read():
-            with self._reading():
-                return read_json_copy(self._f.get(f"results/{key}"))
-        got = in_child(self.path, f"results/{key}#json", read)
-        if got is None:
-            return decode_result(self.read_group(path))
-        check_result(key, got, str(self.path))
-        return got

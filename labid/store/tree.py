@@ -115,19 +115,21 @@ def read_tree(g: h5py.Group) -> Any:
     return out
 
 
-def replace_group(run: Path, full: str, data: dict) -> None:
+def replace_group(run: Path, full: str, data: dict, keep_as: str | None = None) -> None:
     """Replace the group ``full`` of the closed file ``run`` by ``data``, crash-safely: the
     file is copied to ``.RUN.h5.XXXXXXXX.results`` (``temp_beside``), the group written
     there with its bytes reserved first (``space.reserved``), the copy synced and renamed
-    over ``run`` (a kill at any moment leaves the old file or the new one). UserError
-    naming the file when the disk is full or read-only, or the run too damaged to take
-    the group (``run`` unchanged)."""
+    over ``run`` (a kill at any moment leaves the old file or the new one). ``keep_as``:
+    the group ``full`` there before is first moved (an HDF5 link move: nothing read or
+    copied) to that path of the same copy, replacing what was there; one copy, one rename
+    for both. UserError naming the file when the disk is full or read-only, or the run too
+    damaged to take the group (``run`` unchanged)."""
     tmp = None
     try:
         tmp = temp_beside(run, ".results")
         shutil.copyfile(run, tmp)
         shutil.copymode(run, tmp)                # the run keeps its permissions (mkstemp: 0600)
-        _write_copy(tmp, run, full, data)
+        _write_copy(tmp, run, full, data, keep_as)
         with open(tmp, "rb+") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, run)
@@ -141,13 +143,18 @@ def replace_group(run: Path, full: str, data: dict) -> None:
             tmp.unlink(missing_ok=True)
 
 
-def _write_copy(tmp: Path, run: Path, full: str, data: dict) -> None:
-    """Write ``data`` as the group ``full`` of the copy ``tmp`` of ``run``. A failed write
-    leaves the HDF5 file unclosable (``space.poison``); any other error of a damaged copy
-    is one UserError."""
+def _write_copy(tmp: Path, run: Path, full: str, data: dict, keep_as: str | None = None) -> None:
+    """Write ``data`` as the group ``full`` of the copy ``tmp`` of ``run`` (the group there
+    before moved to ``keep_as`` first, when given). A failed write leaves the HDF5 file
+    unclosable (``space.poison``); any other error of a damaged copy is one UserError."""
     f = h5py.File(tmp, "a", libver="latest", locking=False)
     try:
         with reserved(f, tree_bytes(data), run, "storing the result", trim=False):
+            if keep_as is not None and full in f:
+                if keep_as in f:
+                    del f[keep_as]
+                f.require_group(keep_as.rsplit("/", 1)[0])
+                f.move(full, keep_as)
             if full in f:
                 del f[full]
             write_tree(f.require_group(full), data)
