@@ -61,6 +61,8 @@ def lone_label(freqs: np.ndarray, v: np.ndarray, nominal: Mapping[str, np.ndarra
     r = {m: float(np.nanmedian(v[ok] / nominal[m][ok])) for m in fams}
     fits = [m for m in fams if scale_range[0] <= r[m] <= scale_range[1]]
     if len(fits) < 2:
+        if len(fits) == 1 and fits[0] != found:      # the track drifted out of the scale range
+            return fits[0], f"its ratio to the nominal: {found} {r[found]:.2f}, {fits[0]} {r[fits[0]]:.2f} x"
         return found, ""
     span = math.log(f.max() / f.min())
     if abs(s_nom["A0"] - s_nom["S0"]) * span >= SHAPE_MIN:
@@ -77,40 +79,53 @@ def lone_label(freqs: np.ndarray, v: np.ndarray, nominal: Mapping[str, np.ndarra
     return lab, why
 
 
-def absent_level(peaks_far: Sequence[Sequence[tuple[float, float]]], t_ref: np.ndarray, r_far: float,
+def absent_level(W_far: np.ndarray, t: np.ndarray, t_ref: np.ndarray, r_far: float,
                  v_range: tuple[np.ndarray, np.ndarray], found_v: np.ndarray, expected: np.ndarray,
-                 width: np.ndarray, floor: np.ndarray) -> float | None:
+                 width: np.ndarray, W_near: np.ndarray | None = None, r_near: float = 0.0) -> float | None:
     """The factor (<= 1) by which the records hold a mode less than the nominal expects, or
-    None when they cannot say. ``peaks_far``: per frequency the far sensor's scalogram maxima
-    [(time on the record axis after the sensor delay, |W|)]; ``t_ref``: the source time per
-    frequency; ``r_far``: its distance (m); ``v_range``: the (slowest, fastest) c_g the mode
-    may have per frequency (where the picker will look for it); ``found_v``: the found
-    packet's measured c_g (NaN where not seen); ``expected``: the mode's nominal level
-    relative to the found mode's at that sensor; ``width``: the found packet's half-width
-    (s); ``floor``: the far record's detection floor (|W|). Per frequency: the strongest
-    maximum inside the mode's possible times, apart from the found packet (more than
-    ``width`` from its time), else the floor, over the found packet's own maximum, divided by
-    ``expected``; the largest over the band (the bound, not its typical value) where the mode
-    is predicted within 12 dB of its strongest (in a notch of the prediction the ratio is
-    large and the packet too weak to matter)."""
+    None when they cannot say. ``W_far`` / ``W_near``: the far / a nearer sensor's |W|
+    (frequency x time) on the record axis ``t`` less the sensors' delay; ``t_ref``: the source
+    time per frequency; ``r_far`` / ``r_near``: their distances (m); ``v_range``: the (slowest,
+    fastest) c_g the mode may have per frequency (where the picker will look for it);
+    ``found_v``: the found packet's measured c_g (NaN where not seen); ``expected``: the
+    mode's nominal level relative to the found mode's at the far sensor; ``width``: the found
+    packet's half-width (s) where no nearer record is given.
+
+    Per frequency, what of the far record inside the mode's possible times the found packet
+    does not explain: with a nearer record, the far |W| less the near one moved by the found
+    packet's delay between their maxima and scaled to its far peak (a packet of another speed does not
+    move with it: it stays in the difference; what the found packet's own dispersion
+    changes between the sensors stays too, so this bounds from above); without, the far |W|
+    more than ``width`` from the found packet. Its largest value over the found packet's far
+    peak, divided by ``expected``; the largest over the band where the mode is predicted
+    within 12 dB of its strongest (in a notch of the prediction the ratio is large and the
+    packet too weak to matter)."""
     out = []
     strong = expected >= 0.25 * np.nanmax(np.where(np.isfinite(expected), expected, 0.0))
-    for i, row in enumerate(peaks_far):
-        if not (np.isfinite(found_v[i]) and np.isfinite(v_range[0][i]) and np.isfinite(t_ref[i])
-                and strong[i]) or not row:
+    for i in range(W_far.shape[0]):
+        if not (np.isfinite(found_v[i]) and np.isfinite(v_range[0][i]) and np.isfinite(t_ref[i]) and strong[i]):
             continue
         t_found = t_ref[i] + r_far / found_v[i]
-        times = np.array([p[0] for p in row])
-        amps = np.array([p[1] for p in row])
-        near = np.abs(times - t_found) <= width[i]
-        if not near.any():
+        near = np.abs(t - t_found) <= width[i]
+        inside = (t >= t_ref[i] + r_far / v_range[1][i]) & (t <= t_ref[i] + r_far / v_range[0][i])
+        if not near.any() or not inside.any():
             continue
-        a_found = float(amps[near].max())
-        t_lo = t_ref[i] + r_far / v_range[1][i]
-        t_hi = t_ref[i] + r_far / v_range[0][i]
-        inside = (times >= t_lo) & (times <= t_hi) & ~near
-        a = float(amps[inside].max()) if inside.any() else float(floor[i])
-        out.append(a / a_found / expected[i])
+        peak = float(W_far[i, near].max())
+        if W_near is not None and r_near < r_far:
+            # the found packet's own delay between the sensors: its maxima, each near its survey time
+            at_near = np.abs(t - t_ref[i] - r_near / found_v[i]) <= width[i]
+            if not at_near.any():
+                continue
+            delay = t[near][np.argmax(W_far[i, near])] - t[at_near][np.argmax(W_near[i, at_near])]
+            moved = np.interp(t - delay, t, W_near[i], left=0.0, right=0.0)
+            g = peak / max(float(moved[near].max()), 1e-300)
+            rest = np.abs(W_far[i] - g * moved)[inside]
+        else:
+            inside &= ~near
+            if not inside.any():
+                continue
+            rest = W_far[i, inside]
+        out.append(float(rest.max()) / peak / expected[i])
     if len(out) < 3:
         return None
     return float(min(max(out), 1.0))

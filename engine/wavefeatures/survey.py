@@ -385,7 +385,7 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
     cands = {fm: _candidates(d, peaks, freqs, wl, t_ref, tol, known_time=setup.force_channel is not None,
                              family=fm) for fm in "AS"}
     nominal = {m: nominal_cg(d, m)[idx] for m in modes}
-    nominal = {m: v for m, v in nominal.items() if np.isfinite(v).sum() >= 3}
+    nominal = every = {m: v for m, v in nominal.items() if np.isfinite(v).sum() >= 3}
     # a mode the source hardly excites (or the sensor hardly sees: SH0 under a normal force or
     # a disc, along a symmetry axis) is not searched: its curve would claim another's packets
     level = _direct_levels(d, freqs, wl)
@@ -425,8 +425,9 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
     if len(scale) == 1 and both:
         # a lone packet: its family from its dispersion or one common stiffness factor (lone.py)
         m = next(iter(scale))
-        lab, why = lone.lone_label(freqs, meas[m], nominal, m, SCALE_RANGE)
+        lab, why = lone.lone_label(freqs, meas[m], every, m, SCALE_RANGE)     # every mode: a level is no label
         if lab != m:
+            nominal[lab] = every[lab]
             track = _track(cands["A" if lab.startswith("A") else "S"], nominal[lab],
                            float(np.nanmedian(meas[m] / nominal[lab])), freqs, None)
             if track is not None:
@@ -437,8 +438,6 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
                              f"not {m}")
         found = next(iter(scale))
         far = d.sensors[-1]
-        sd = sensor_delay(far, freqs)
-        pk_far = [[(tt - sd[i], a) for tt, a in row] for i, row in enumerate(peaks[far.channel])]
         med = ratio[found]
         mu = float(min(d.settings.gate_margin + abs(math.log(med)), 0.3))
         width = 2 * tstd + 0.5 * setup.source.force().duration_s
@@ -446,9 +445,11 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
             if k in scale or k not in level:
                 continue
             rel = level[k] / np.maximum(level[found], 1e-300)
-            fac = lone.absent_level(pk_far, t_ref, far.distance_m, (nominal[k] * med * (1 - mu), nominal[k] * med
-                                                                     * (1 + mu)), meas[found], rel, width,
-                                    floors[far.channel])
+            nr = d.sensors[0] if d.sensors[0].distance_m < far.distance_m else None
+            fac = lone.absent_level(A[far.channel], t - float(np.median(sensor_delay(far, freqs))), t_ref,
+                                    far.distance_m, (nominal[k] * med * (1 - mu), nominal[k] * med * (1 + mu)),
+                                    meas[found], rel, width, None if nr is None else A[nr.channel],
+                                    0.0 if nr is None else nr.distance_m)
             if fac is not None and fac < ABSENT:
                 absent[k] = fac
                 notes.append(f"direction {d.direction:g} deg: no {k} packet in the records where the picker will "
