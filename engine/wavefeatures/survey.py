@@ -427,12 +427,12 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
         m = next(iter(scale))
         lab, why = lone.lone_label(freqs, meas[m], every, m, SCALE_RANGE)     # every mode: a level is no label
         if lab != m:
-            nominal[lab] = every[lab]
-            track = _track(cands["A" if lab.startswith("A") else "S"], nominal[lab],
-                           float(np.nanmedian(meas[m] / nominal[lab])), freqs, None)
+            track = _track(cands["A" if lab.startswith("A") else "S"], every[lab],
+                           float(np.nanmedian(meas[m] / every[lab])), freqs, None)
             if track is not None:
                 for dct in (scale, margin, ratio, band, meas):
                     dct.pop(m)
+                nominal[lab] = every[lab]
                 keep(lab, track)
                 notes.append(f"direction {d.direction:g} deg: one packet in the records, {lab} by {why}, "
                              f"not {m}")
@@ -441,7 +441,7 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
         med = ratio[found]
         mu = float(min(d.settings.gate_margin + abs(math.log(med)), 0.3))
         width = 2 * tstd + 0.5 * setup.source.force().duration_s
-        for k in nominal:
+        for k in nominal if found in level else ():
             if k in scale or k not in level:
                 continue
             rel = level[k] / np.maximum(level[found], 1e-300)
