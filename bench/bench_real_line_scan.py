@@ -15,7 +15,7 @@ Rayleigh-Lamb A0 / S0 of that aluminium at 1.0 and 1.5 mm (bench/independent/leg
 
 labid: each burst's records at 0 and 45 mm as a pitch-catch pair (rig
 bench/import_real/erik_line_rig.toml says what is assumed; its burst frequency is set to the
-file's), ``labid import`` + ``labid analyze`` from E, G 32 % low and 32 % high
+file's, and its rate: 41.7 MHz for the 250 kHz file, 62.5 MHz for the others), ``labid import`` + ``labid analyze`` from E, G 32 % low and 32 % high
 (bench/import_real/erik_al_nominal_low|high.toml); each point against the line estimate
 interpolated (linearly in f between the bursts' centres) and against the same two positions'
 envelope peaks (numpy/scipy only).
@@ -49,11 +49,12 @@ FILE = "all_data/test_Al_tren_2105.mat"
 POS = np.array([0.0] + list(np.arange(2.5, 35.01, 2.5)) + list(np.arange(35.5, 45.01, 0.5))) * 1e-3
 
 
-def line_cg(a: np.ndarray, f0: float) -> tuple[float, float]:
-    """(c_g m/s, rms residual of the line s) from the 35 envelope peaks (module docstring)."""
+def line_cg(a: np.ndarray, f0: float, half: float = 0.2) -> tuple[float, float]:
+    """(c_g m/s, rms residual of the line s) from the 35 envelope peaks (module docstring);
+    band-pass f0 (1 +- half)."""
     t = a[:, 0]
     fs = 1.0 / float(np.median(np.diff(t)))
-    sos = signal.butter(4, [0.8 * f0, 1.2 * f0], "bandpass", fs=fs, output="sos")
+    sos = signal.butter(4, [(1 - half) * f0, (1 + half) * f0], "bandpass", fs=fs, output="sos")
     peaks = []
     for j in range(1, a.shape[1]):
         e = np.abs(signal.hilbert(signal.sosfiltfilt(sos, a[:, j] - np.mean(a[:, j]))))
@@ -117,17 +118,28 @@ def main() -> None:
             with tempfile.TemporaryDirectory() as tmp:
                 d = Path(tmp)
                 rig = d / "rig.toml"        # the burst's own centre frequency (the file says 500 kHz)
-                rig.write_text(rig_text.replace("frequency_hz = 500.0e3", f"frequency_hz = {f0:.1f}"))
+                fs = 1.0 / float(np.median(np.diff(a[:, 0])))    # 41.7 MHz for 250 kHz, else 62.5
+                rig.write_text(rig_text.replace("frequency_hz = 500.0e3", f"frequency_hz = {f0:.1f}")
+                               .replace("rate_hz = 62.5e6", f"rate_hz = {fs:.6g}")
+                               .replace("samples = 4026", f"samples = {a.shape[0]}"))
                 write_csv(d / "P00.csv", "P00", a[:, 1])
                 write_csv(d / "P45.csv", "P45", a[:, 35])
                 code, out, wi, ci = cli(["import", str(d / "P00.csv"), str(d / "P45.csv"), "--rig", str(rig),
                                          "--specimen", str(HERE / spec), "--out", str(d / "run.h5"), "--rate",
-                                         "62.5e6", "--pretrigger", "0", "--units", "P00=V,P45=V", "--quiet"])
+                                         f"{fs:.6g}", "--pretrigger", "0", "--units", "P00=V,P45=V", "--quiet"])
                 if code:
                     print(f"\n{f0 / 1e3:.0f} kHz {spec}: import failed ({code}): {out.strip()[-300:]}")
                     continue
                 code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json")])
                 print(f"\n{f0 / 1e3:.0f} kHz, {spec}: analyze {wa:.1f} s wall / {ca:.1f} s CPU (exit {code})")
+                if "set --wave-band " in out:       # as a user would: the band the records hold
+                    wb = out.split("set --wave-band ")[1].split()[0].rstrip(".;,")
+                    code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json"),
+                                             "--wave-band", wb])
+                    lo, hi = (float(x) for x in wb.split(","))
+                    v, rms = line_cg(a, 0.5 * (lo + hi), (hi - lo) / (hi + lo))
+                    print(f"  again with --wave-band {wb}: analyze {wa:.1f} s wall / {ca:.1f} s CPU (exit {code}); "
+                          f"line estimate in that band {v:.0f} m/s (rms {rms * 1e9:.0f} ns)")
                 for ln in out.splitlines():
                     if ln.startswith(("warning", "dropped", "features")):
                         print("  " + ln[:200])
