@@ -24,7 +24,9 @@ direct packet is, and hands the picker predictions rescaled by it:
    S0 fast and flat, SH0 between); per mode, the scale s (0.6..1.6) of its nominal curve
    that passes through the most candidate energy is searched, the fastest mode first, each
    slower one below the faster ones' measured curves; among the strong solutions the
-   fastest is the direct path (a mode's reflections arrive after its direct packet);
+   fastest is the direct path (a mode's reflections arrive after its direct packet); one
+   packet alone along a direction is named by its dispersion or one common stiffness factor,
+   and a mode the records do not hold gets the level they allow (``engine.wavefeatures.lone``);
 5. the result: per mode the measured / nominal ratio per frequency (a smooth fit), its
    scatter as the picker's margin, the onset range, and, where a mode's ratio is off by
    more than the usual uncertainty of nominal constants, one line saying so.
