@@ -13,9 +13,12 @@ all 35 positions, and a straight-line fit of time against position: c_g = 1 / sl
 scan's own estimate, 45 mm of lever, no source time needed). Reference (not a measurement):
 Rayleigh-Lamb A0 / S0 of that aluminium at 1.0 and 1.5 mm (bench/independent/legendre_safe.py).
 
-labid: the 500 kHz records at 0 and 45 mm as a pitch-catch pair (rig
-bench/import_real/erik_line_rig.toml says what is assumed), ``labid import`` + ``labid analyze``
-from E, G 32 % low and 32 % high (bench/import_real/erik_al_nominal_low|high.toml).
+labid: each burst's records at 0 and 45 mm as a pitch-catch pair (rig
+bench/import_real/erik_line_rig.toml says what is assumed; its burst frequency is set to the
+file's, and its rate: 41.7 MHz for the 250 kHz file, 62.5 MHz for the others), ``labid import`` + ``labid analyze`` from E, G 32 % low and 32 % high
+(bench/import_real/erik_al_nominal_low|high.toml); each point against the line estimate
+interpolated (linearly in f between the bursts' centres) and against the same two positions'
+envelope peaks (numpy/scipy only).
 
 Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_real_line_scan.py
 (the repository is mirrored with the ``fetch`` tool: github:eriknbd/Lamb_wave_analisis).
@@ -46,11 +49,12 @@ FILE = "all_data/test_Al_tren_2105.mat"
 POS = np.array([0.0] + list(np.arange(2.5, 35.01, 2.5)) + list(np.arange(35.5, 45.01, 0.5))) * 1e-3
 
 
-def line_cg(a: np.ndarray, f0: float) -> tuple[float, float]:
-    """(c_g m/s, rms residual of the line s) from the 35 envelope peaks (module docstring)."""
+def line_cg(a: np.ndarray, f0: float, half: float = 0.2) -> tuple[float, float]:
+    """(c_g m/s, rms residual of the line s) from the 35 envelope peaks (module docstring);
+    band-pass f0 (1 +- half)."""
     t = a[:, 0]
     fs = 1.0 / float(np.median(np.diff(t)))
-    sos = signal.butter(4, [0.8 * f0, 1.2 * f0], "bandpass", fs=fs, output="sos")
+    sos = signal.butter(4, [(1 - half) * f0, (1 + half) * f0], "bandpass", fs=fs, output="sos")
     peaks = []
     for j in range(1, a.shape[1]):
         e = np.abs(signal.hilbert(signal.sosfiltfilt(sos, a[:, j] - np.mean(a[:, j]))))
@@ -70,6 +74,20 @@ def reference(h: float, f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return br.at(0, 2 * np.pi * f)[1], br.at(2, 2 * np.pi * f)[1]
 
 
+def pair_cg(a: np.ndarray, f0: float) -> float:
+    """c_g (m/s) from the envelope peaks at 0 and 45 mm only (the two records labid is given)."""
+    t = a[:, 0]
+    fs = 1.0 / float(np.median(np.diff(t)))
+    sos = signal.butter(4, [0.8 * f0, 1.2 * f0], "bandpass", fs=fs, output="sos")
+    tp = []
+    for j in (1, 35):
+        e = np.abs(signal.hilbert(signal.sosfiltfilt(sos, a[:, j] - np.mean(a[:, j]))))
+        k = int(signal.find_peaks(e, height=0.3 * e.max())[0][0])
+        la, lb, lc = np.log(e[k - 1:k + 2])
+        tp.append(t[k] + 0.5 * (la - lc) / (la - 2 * lb + lc) / fs)
+    return 0.045 / (tp[1] - tp[0])
+
+
 def main() -> None:
     print(f"machine: {machine()}")
     if not MIRROR.exists():
@@ -78,41 +96,70 @@ def main() -> None:
     raw = subprocess.run(["git", "--git-dir", str(MIRROR), "show", f"{COMMIT}:{FILE}"], check=True,
                          capture_output=True).stdout
     mats = loadmat(io.BytesIO(raw))
-    print("\nindependent line-scan estimate (35 positions, 0-45 mm), m/s; Rayleigh-Lamb A0 / S0 at 1.0 | 1.5 mm:")
-    est = {}
-    for key in ("fss_0250kHz", "fss_0340kHz", "fss_0500kHz", "fss_0640kHz"):
+    print("\nindependent estimates, m/s: 35-position line (0-45 mm) and the 0 / 45 mm pair; "
+          "Rayleigh-Lamb A0 / S0 at 1.0 | 1.5 mm:")
+    keys = ("fss_0250kHz", "fss_0340kHz", "fss_0500kHz", "fss_0640kHz")
+    est, pair = {}, {}
+    for key in keys:
         f0 = float(key[4:8]) * 1e3
         v, rms = line_cg(mats[key], f0)
-        est[f0] = v
+        est[f0], pair[f0] = v, pair_cg(mats[key], f0)
         a1, s1 = reference(1.0e-3, np.array([f0]))
         a15, s15 = reference(1.5e-3, np.array([f0]))
-        print(f"  {f0 / 1e3:.0f} kHz: {v:.0f} (line rms {rms * 1e9:.0f} ns); A0 {a1[0]:.0f} | {a15[0]:.0f}, "
-              f"S0 {s1[0]:.0f} | {s15[0]:.0f}")
-    a = mats["fss_0500kHz"]
-    rig = HERE / "erik_line_rig.toml"
-    for spec in ("erik_al_nominal_low.toml", "erik_al_nominal_high.toml"):
-        with tempfile.TemporaryDirectory() as tmp:
-            d = Path(tmp)
-            write_csv(d / "P00.csv", "P00", a[:, 1])
-            write_csv(d / "P45.csv", "P45", a[:, 35])
-            code, out, wi, ci = cli(["import", str(d / "P00.csv"), str(d / "P45.csv"), "--rig", str(rig),
-                                     "--specimen", str(HERE / spec), "--out", str(d / "run.h5"), "--rate", "62.5e6",
-                                     "--pretrigger", "0", "--units", "P00=V,P45=V", "--quiet"])
-            if code:
-                print(f"\n{spec}: import failed ({code}): {out.strip()[-300:]}")
-                continue
-            code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json")])
-            print(f"\n{spec}: analyze {wa:.1f} s wall / {ca:.1f} s CPU (exit {code})")
-            for ln in out.splitlines():
-                if ln.startswith(("warning", "A0", "S0", "dropped", "features")):
-                    print("  " + ln[:230])
-            if code:
-                continue
-            for w in json.loads((d / "f.json").read_text()).get("waves", []):
-                print(f"  {w['mode']}: " + "; ".join(
-                    f"{fi / 1e3:.0f} kHz {vi:.0f} +- {si:.0f}" for fi, vi, si in
-                    zip(w["frequency_hz"], w["group_velocity_m_s"], w["sigma_m_s"]))
-                    + f" (line-scan estimate at 500 kHz: {est[500e3]:.0f})")
+        print(f"  {f0 / 1e3:.0f} kHz: line {v:.0f} (rms {rms * 1e9:.0f} ns), pair {pair[f0]:.0f}; A0 {a1[0]:.0f} | "
+              f"{a15[0]:.0f}, S0 {s1[0]:.0f} | {s15[0]:.0f}")
+    fl = np.array(sorted(est))
+    rig_text = (HERE / "erik_line_rig.toml").read_text()
+    rows = []
+    for key in keys:
+        f0 = float(key[4:8]) * 1e3
+        a = mats[key]
+        for spec in ("erik_al_nominal_low.toml", "erik_al_nominal_high.toml"):
+            with tempfile.TemporaryDirectory() as tmp:
+                d = Path(tmp)
+                rig = d / "rig.toml"        # the burst's own centre frequency (the file says 500 kHz)
+                fs = 1.0 / float(np.median(np.diff(a[:, 0])))    # 41.7 MHz for 250 kHz, else 62.5
+                rig.write_text(rig_text.replace("frequency_hz = 500.0e3", f"frequency_hz = {f0:.1f}")
+                               .replace("rate_hz = 62.5e6", f"rate_hz = {fs:.6g}")
+                               .replace("samples = 4026", f"samples = {a.shape[0]}"))
+                write_csv(d / "P00.csv", "P00", a[:, 1])
+                write_csv(d / "P45.csv", "P45", a[:, 35])
+                code, out, wi, ci = cli(["import", str(d / "P00.csv"), str(d / "P45.csv"), "--rig", str(rig),
+                                         "--specimen", str(HERE / spec), "--out", str(d / "run.h5"), "--rate",
+                                         f"{fs:.6g}", "--pretrigger", "0", "--units", "P00=V,P45=V", "--quiet"])
+                if code:
+                    print(f"\n{f0 / 1e3:.0f} kHz {spec}: import failed ({code}): {out.strip()[-300:]}")
+                    continue
+                code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json")])
+                print(f"\n{f0 / 1e3:.0f} kHz, {spec}: analyze {wa:.1f} s wall / {ca:.1f} s CPU (exit {code})")
+                if "set --wave-band " in out:       # as a user would: the band the records hold
+                    wb = out.split("set --wave-band ")[1].split()[0].rstrip(".;,")
+                    code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json"),
+                                             "--wave-band", wb])
+                    lo, hi = (float(x) for x in wb.split(","))
+                    v, rms = line_cg(a, 0.5 * (lo + hi), (hi - lo) / (hi + lo))
+                    print(f"  again with --wave-band {wb}: analyze {wa:.1f} s wall / {ca:.1f} s CPU (exit {code}); "
+                          f"line estimate in that band {v:.0f} m/s (rms {rms * 1e9:.0f} ns)")
+                for ln in out.splitlines():
+                    if ln.startswith(("warning", "dropped", "features")):
+                        print("  " + ln[:200])
+                if code:
+                    continue
+                doc = json.loads((d / "f.json").read_text())
+                for n in doc.get("analysis", {}).get("notes", []):
+                    if "one packet in the records" in n or "packet in the records where" in n:
+                        print("  note: " + n[:260])
+                for w in doc.get("waves", []):
+                    for fi, vi, si in zip(w["frequency_hz"], w["group_velocity_m_s"], w["sigma_m_s"]):
+                        ref = float(np.interp(fi, fl, [est[f] for f in fl]))
+                        rows.append((f0, spec, w["mode"], fi, vi, si, ref, pair[f0]))
+                        print(f"  {w['mode']} {fi / 1e3:.0f} kHz {vi:.0f} +- {si:.0f}: {100 * (vi / ref - 1):+.1f} % of the "
+                              f"line estimate ({ref:.0f}, interpolated), {100 * (vi / pair[f0] - 1):+.1f} % of the "
+                              f"pair's ({pair[f0]:.0f})")
+    print("\nsummary: burst | nominal | mode | f kHz | labid m/s +- sigma | vs line | vs pair | |err| / sigma (line)")
+    for f0, spec, m, fi, vi, si, ref, pr in rows:
+        print(f"  {f0 / 1e3:.0f} | {spec.split('_')[-1][:-5]} | {m} | {fi / 1e3:.0f} | {vi:.0f} +- {si:.0f} | "
+              f"{100 * (vi / ref - 1):+.1f} % | {100 * (vi / pr - 1):+.1f} % | {abs(vi - ref) / si:.1f}")
 
 
 if __name__ == "__main__":

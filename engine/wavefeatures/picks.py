@@ -161,6 +161,7 @@ class Direction:
     nominal_cg: dict = field(default_factory=dict)  # mode -> direct-path nominal c_g
     prior_scale: dict = field(default_factory=dict)   # mode -> ratio found by the survey (stage 0)
     prior_margin: dict = field(default_factory=dict)  # mode -> its relative uncertainty
+    absent: dict = field(default_factory=dict)   # mode -> level factor the records allow (survey, < 1)
     strict: bool = True        # stage 1 (False): overlaps are not dropped, the picks only rescale
     record_s: float = 0.0      # how long after the earliest onset the records reach (s)
     memo: dict = field(default_factory=dict)   # one shot's picks by wavelet, stage and state (pipeline)
@@ -248,8 +249,15 @@ def packets_at(d: Direction, s: Sensor, wl: waves.Wavelet) -> list[Packet]:
                              wl, sensor_face=s.face if s.families == "AS" else "top",
                              sensor_length_m=s.length_m, order=order, fs_hz=setup.fs_hz,
                              duration_s=d.record_s)
-        d.packets[key] = [p for p in pk if family(p.mode) in s.families]
+        d.packets[key] = [p if p.mode not in d.absent else _scaled(p, d.absent[p.mode])
+                          for p in pk if family(p.mode) in s.families]
     return d.packets[key]
+
+
+def _scaled(p: Packet, k: float) -> Packet:
+    """``p`` at ``k`` x its predicted level (a mode the records hold less of, ``survey``)."""
+    return replace(p, amplitude=p.amplitude * k, model_w=None if p.model_w is None else p.model_w * k,
+                   model_dw=None if p.model_dw is None else p.model_dw * k)
 
 
 def _src_time(d: Direction, wl: waves.Wavelet, src_arr: waves.Arrivals | None) -> tuple[np.ndarray, np.ndarray]:

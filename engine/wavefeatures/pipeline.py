@@ -112,6 +112,7 @@ def _apply_survey(d: Direction, shots, settings: WaveSettings, onsets=None):
     sv = survey_direction(d, shots, onsets=onsets[0] if onsets else ())
     if onsets:
         d.t0_prior = d.t0 = onsets[1]
+    d.absent = dict(sv.level)
     if not sv.ratio:
         return sv
     med = float(np.median(list(sv.ratio.values())))

@@ -24,7 +24,9 @@ direct packet is, and hands the picker predictions rescaled by it:
    S0 fast and flat, SH0 between); per mode, the scale s (0.6..1.6) of its nominal curve
    that passes through the most candidate energy is searched, the fastest mode first, each
    slower one below the faster ones' measured curves; among the strong solutions the
-   fastest is the direct path (a mode's reflections arrive after its direct packet);
+   fastest is the direct path (a mode's reflections arrive after its direct packet); one
+   packet alone along a direction is named by its dispersion or one common stiffness factor,
+   and a mode the records do not hold gets the level they allow (``engine.wavefeatures.lone``);
 5. the result: per mode the measured / nominal ratio per frequency (a smooth fit), its
    scatter as the picker's margin, the onset range, and, where a mode's ratio is off by
    more than the usual uncertainty of nominal constants, one line saying so.
@@ -40,6 +42,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from .. import waves
+from . import lone
 from .picks import (Direction, arrivals_of, noise_rms, nominal_cg, sensor_delay)
 from .predict import predict_packets, source_signature
 
@@ -49,6 +52,7 @@ SCALE_RANGE = (0.6, 1.6)      # measured / nominal velocity ratios searched (mod
 TAU = 0.03                    # log-velocity tolerance of the scale match
 N_SUB = 28                    # coarse analysis frequencies
 SURVEY_WAVELET = waves.Wavelet(2.0, 1.0)
+ABSENT = 0.5                  # a missing mode's level bound below which its predictions are scaled down
 INCONSISTENT = 0.25           # weight of a maximum the nearer sensors do not confirm (source recorded)
 
 
@@ -61,7 +65,9 @@ class Survey:
     per mode, the median ratio. band: per mode, the (lowest, highest) frequency it was seen
     at. t0_range: the source onset range on the record axis (None: the source is recorded or
     the onset is not sought). onset_shots: the onset found per surveyed shot. notes: what
-    was done. mismatch: per mode (ratio, line) where the data contradict the nominal."""
+    was done. mismatch: per mode (ratio, line) where the data contradict the nominal. level:
+    per mode the records did not show (a lone packet's direction), the factor (< ``ABSENT``)
+    by which they hold it less than the nominal predicts (``lone.absent_level``)."""
 
     scale: Mapping[str, np.ndarray]
     margin: Mapping[str, float]
@@ -71,6 +77,7 @@ class Survey:
     onset_shots: tuple[float, ...] = ()
     notes: tuple[str, ...] = ()
     mismatch: Mapping[str, tuple[float, str]] = field(default_factory=dict)
+    level: Mapping[str, float] = field(default_factory=dict)
 
 
 def _maxima(A: np.ndarray, t: np.ndarray, t_min: float, floor: np.ndarray, k_max: int = 12):
@@ -380,7 +387,7 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
     cands = {fm: _candidates(d, peaks, freqs, wl, t_ref, tol, known_time=setup.force_channel is not None,
                              family=fm) for fm in "AS"}
     nominal = {m: nominal_cg(d, m)[idx] for m in modes}
-    nominal = {m: v for m, v in nominal.items() if np.isfinite(v).sum() >= 3}
+    nominal = every = {m: v for m, v in nominal.items() if np.isfinite(v).sum() >= 3}
     # a mode the source hardly excites (or the sensor hardly sees: SH0 under a normal force or
     # a disc, along a symmetry axis) is not searched: its curve would claim another's packets
     level = _direct_levels(d, freqs, wl)
@@ -388,8 +395,21 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
     strongest = np.nanmax(np.array(list(level.values())), axis=0) if level else np.ones(freqs.size)
     nominal = {m: v for m, v in nominal.items() if m in level and np.nanmax(level[m]) >= 0.05 * top}
     fam = set("".join(s.families for s in d.sensors))
-    scale, margin, ratio, band, mismatch = {}, {}, {}, {}, {}
+    scale, margin, ratio, band, mismatch, absent, meas = {}, {}, {}, {}, {}, {}, {}
     upper = None
+    x_all = np.log(freqs_all / freqs_all.max())
+
+    def keep(m, track):
+        c, ok, r, spread = track
+        f_ok = freqs[ok]
+        scale[m] = np.polynomial.polynomial.polyval(x_all, c)
+        margin[m] = float(min(max(4 * spread, 0.02), 0.06))
+        ratio[m] = float(np.median(r))
+        band[m] = (float(f_ok.min()), float(f_ok.max()))
+        meas[m] = np.full(freqs.size, np.nan)
+        meas[m][ok] = r * nominal[m][ok]
+        return c, ok
+
     for m in sorted(nominal, key=lambda m: -np.nanmedian(nominal[m])):      # fastest first
         if ("A" if m.startswith("A") else "S") not in fam:
             continue
@@ -397,23 +417,50 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
                             level[m] / np.maximum(strongest, 1e-300))
         if res is None:
             continue
-        s, sc, matched = res
-        track = _track(cands["A" if m.startswith("A") else "S"], nominal[m], s, freqs, upper)
+        track = _track(cands["A" if m.startswith("A") else "S"], nominal[m], res[0], freqs, upper)
         if track is None:
             continue
-        c, ok, r, spread = track
-        f_ok = freqs[ok]
-        x_all = np.log(freqs_all / freqs_all.max())
-        fit = np.polynomial.polynomial.polyval(x_all, c)
-        scale[m] = fit
-        margin[m] = float(min(max(4 * spread, 0.02), 0.06))
-        ratio[m] = float(np.median(r))
-        band[m] = (float(f_ok.min()), float(f_ok.max()))
+        c, ok = keep(m, track)
         cur = nominal[m] * np.polynomial.polynomial.polyval(np.log(freqs / freqs_all.max()), c)
         upper = cur if upper is None else np.fmin(upper, cur)
-        notes.append(f"direction {d.direction:g} deg: {m} found in the records at {ok.sum()} of {freqs.size} "
-                     f"surveyed frequencies ({band[m][0] / 1e3:.3g}-{band[m][1] / 1e3:.3g} kHz), "
+    both = all(set(s.families) >= {"A", "S"} for s in d.sensors)      # one record holds both families
+    if len(scale) == 1 and both:
+        # a lone packet: its family from its dispersion or one common stiffness factor (lone.py)
+        m = next(iter(scale))
+        lab, why = lone.lone_label(freqs, meas[m], every, m, SCALE_RANGE)     # every mode: a level is no label
+        if lab != m:
+            track = _track(cands["A" if lab.startswith("A") else "S"], every[lab],
+                           float(np.nanmedian(meas[m] / every[lab])), freqs, None)
+            if track is not None:
+                for dct in (scale, margin, ratio, band, meas):
+                    dct.pop(m)
+                nominal[lab] = every[lab]
+                keep(lab, track)
+                notes.append(f"direction {d.direction:g} deg: one packet in the records, {lab} by {why}, "
+                             f"not {m}")
+        found = next(iter(scale))
+        far = d.sensors[-1]
+        med = ratio[found]
+        mu = float(min(d.settings.gate_margin + abs(math.log(med)), 0.3))
+        width = 2 * tstd + 0.5 * setup.source.force().duration_s
+        for k in nominal if found in level else ():
+            if k in scale or k not in level:
+                continue
+            rel = level[k] / np.maximum(level[found], 1e-300)
+            nr = d.sensors[0] if d.sensors[0].distance_m < far.distance_m else None
+            fac = lone.absent_level(A[far.channel], t - float(np.median(sensor_delay(far, freqs))), t_ref,
+                                    far.distance_m, (nominal[k] * med * (1 - mu), nominal[k] * med * (1 + mu)),
+                                    meas[found], rel, width, None if nr is None else A[nr.channel],
+                                    0.0 if nr is None else nr.distance_m)
+            if fac is not None and fac < ABSENT:
+                absent[k] = fac
+                notes.append(f"direction {d.direction:g} deg: no {k} packet in the records where the picker will "
+                             f"look for it: at most {20 * math.log10(max(fac, 1e-6)):.0f} dB of its nominal level; "
+                             "its predicted packets bound the picks at that level")
+    for m in scale:
+        notes.append(f"direction {d.direction:g} deg: {m} found in the records at {np.isfinite(meas[m]).sum()} of "
+                     f"{freqs.size} surveyed frequencies ({band[m][0] / 1e3:.3g}-{band[m][1] / 1e3:.3g} kHz), "
                      f"{ratio[m]:.3f} x the nominal group velocity, time origin from {how}")
         if abs(math.log(ratio[m])) > max(d.settings.gate_margin, 0.05):
             mismatch[m] = (ratio[m], mismatch_line(m, d.direction, ratio[m], band[m]))
-    return Survey(scale, margin, ratio, band, t0_range, tuple(onsets), tuple(notes), mismatch)
+    return Survey(scale, margin, ratio, band, t0_range, tuple(onsets), tuple(notes), mismatch, absent)

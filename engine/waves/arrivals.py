@@ -172,7 +172,8 @@ def correct_dispersion_bias(arr: Arrivals, degree: int = 3) -> Arrivals:
     (second-order expansion, ``docs/wavelet-bias.md``); tau', tau'' are taken
     from a smooth fit (polynomial of ``degree`` in ln w, weighted by 1/sigma)
     of the measured delays against the instantaneous frequencies. Needs at
-    least degree + 2 valid frequencies; returned unchanged otherwise. A quarter
+    least degree + 2 valid frequencies whose instantaneous frequencies span at least the
+    wavelet's frequency std; returned unchanged otherwise. A quarter
     of the correction is added (in quadrature) to ``sigma_s`` for the
     neglected higher-order terms.
     """
@@ -180,6 +181,13 @@ def correct_dispersion_bias(arr: Arrivals, degree: int = 3) -> Arrivals:
     if ok.sum() < degree + 2:
         return arr
     w = 2 * np.pi * arr.inst_freq_hz
+    wl = arr.wavelet
+    s = 2 * np.pi * arr.frequencies_hz * np.sqrt(2.0 / wl.bandwidth) / (2 * np.pi * wl.center)
+    if np.ptp(w[ok]) < np.median(s[ok]):
+        # the instantaneous frequencies span less than the wavelet's frequency std: tau'' is
+        # not determined (a long tone burst reassigns every analysis frequency into a few kHz:
+        # the fit then moved a 250 kHz A0 pick by 13 us; bench/RESULTS.md, issue 24, session 27)
+        return arr
     x = np.log(w[ok])
     c = np.polynomial.polynomial.polyfit(x - x.mean(), arr.times_s[ok], degree, w=1.0 / arr.sigma_s[ok])
     xx = np.log(np.where(ok, w, 1.0)) - x.mean()
@@ -188,8 +196,6 @@ def correct_dispersion_bias(arr: Arrivals, degree: int = 3) -> Arrivals:
     ww = np.where(ok, w, 1.0)
     tau1 = d1 / ww
     tau2 = (d2 - d1) / ww ** 2
-    wl = arr.wavelet
-    s = 2 * np.pi * arr.frequencies_hz * np.sqrt(2.0 / wl.bandwidth) / (2 * np.pi * wl.center)
     a = 1.0 / s ** 2
     delta = np.where(ok, 0.5 * tau2 * a / (a ** 2 + tau1 ** 2), 0.0)
     # the neglected higher-order terms: a quarter of the correction, as a systematic uncertainty

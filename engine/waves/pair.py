@@ -20,13 +20,14 @@ Units: records in any unit (both the same), fs in Hz, times in s from the record
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import signal
 
 from .wavelet import WaveError
 
-__all__ = ["PairResidue", "residue_ratio", "cancel_residue"]
+__all__ = ["PairResidue", "residue_ratio", "cancel_residue", "clean_shots"]
 
 
 @dataclass(frozen=True)
@@ -99,3 +100,44 @@ def cancel_residue(record: np.ndarray, other: np.ndarray, ratio: complex) -> np.
     """record - Re(ratio H[other]): the copy of the other mode removed (H: analytic signal)."""
     y = np.asarray(other, float)
     return np.asarray(record, float) - np.real(ratio * signal.hilbert(y - np.mean(y)))
+
+
+def clean_shots(shots: Sequence[Mapping[str, np.ndarray]], others: Sequence[Mapping[str, np.ndarray]],
+                rays: Sequence[Sequence[str]], fs: float, band_hz: tuple[float, float], after_s: float = 0.0,
+                max_spread: float = 0.05) -> tuple[list[dict], list[str]]:
+    """The shots of a mode-separated run with the other mode's copy removed (module docstring).
+
+    shots / others: per shot {channel: record} of this run and of the other mode's run (the
+    same channels; shot k of ``others`` pairs with shot k, the mean of ``others`` when their
+    counts differ); rays: the channels of each direction from the pair, the farthest last
+    (one r per ray, measured there, where the other packet arrives alone); after_s: the
+    trigger on the record axis (s from the first sample). A ray whose r moves by more than
+    ``max_spread`` with its gate (the other packet not alone at its far sensor) is left as
+    recorded. Returns (the shots, one note per ray)."""
+    out = [dict(s) for s in shots]
+    same = len(others) == len(shots)
+    mean = {ch: np.mean([o[ch] for o in others], axis=0) for ch in others[0]} if others else {}
+    notes = []
+    for ray in rays:
+        far = ray[-1]
+        if not others or any(ch not in others[0] for ch in ray):
+            notes.append(f"pair residue: the other run has no record of {', '.join(ray)}; left as recorded")
+            continue
+        s_far = np.mean([s[far] for s in shots], axis=0)
+        try:
+            res = residue_ratio(s_far, mean[far], fs, band_hz, after_s=after_s)
+        except WaveError as e:
+            notes.append(f"pair residue on {far}: {e}; left as recorded")
+            continue
+        if res.spread > max_spread:
+            notes.append(f"pair residue on {far}: r moves {100 * res.spread:.0f} % with its gate (the other "
+                         f"mode's packet is not alone there); {', '.join(ray)} left as recorded")
+            continue
+        for k, s in enumerate(out):
+            o = others[k] if same else mean
+            for ch in ray:
+                s[ch] = cancel_residue(s[ch], o[ch], res.ratio)
+        notes.append(f"pair residue: r = {abs(res.ratio):.3f} at {np.degrees(np.angle(res.ratio)):.0f} deg "
+                     f"({res.level_db:.1f} dB) measured on {far} (moves {100 * res.spread:.1f} % with the gate); "
+                     f"removed from {', '.join(ray)}")
+    return out, notes

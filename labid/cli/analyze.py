@@ -39,6 +39,9 @@ def register(sub) -> None:
                    help="(default now) S0 group velocities go into the features whenever measured")
     p.add_argument("--without-s0", action="store_true",
                    help="keep the S0 group velocities out of the features (always stored in the run)")
+    p.add_argument("--pair-residue", default=None, metavar="OTHER.h5",
+                   help="the run of the other mode of a collocated actuator pair (same sensors): the copy of "
+                        "that mode left in this run's records is measured at the far sensor and removed")
     p.add_argument("--iterate", type=int, nargs="?", const=4, default=0, metavar="N",
                    help="pick <-> identify: identify the constants, redo the wave picks with them, until "
                         "the picks stop changing (at most N rounds, default 4); recorded in analysis.iterations")
@@ -75,7 +78,7 @@ def run(args) -> dict:
         modal_fmax_hz=args.modal_fmax, exp_tau_s=args.exp_window,
         wavelet=wavelet,
         wave_band_hz=band, assign="nominal" if args.nominal else "instantaneous",
-        report_s0=not args.without_s0)
+        report_s0=not args.without_s0, pair_residue_run=args.pair_residue)
     out_path = args.out or str(services.features_path(args.run))
     if progress.enabled():      # a terminal: say what the next seconds are for
         progress.note(f"labid analyze: {args.run}: resonance peaks and CWT group velocities")

@@ -30,6 +30,7 @@ import numpy as np
 
 from drivers.protocol import Record
 from engine import modal, waves
+from engine.waves import pair
 from engine.wavefeatures import merge as waves_merge
 from engine.wavefeatures import pipeline as waves_pipeline
 from engine.safe import ply_stiffness
@@ -60,6 +61,8 @@ class AnalysisSettings:
         leak_db, max_bias, min_wave_points, report_s0: the wave choices, with the defaults and
         meaning of ``engine.wavefeatures.pipeline.WaveSettings`` (wavelet, band_hz, n_freqs,
         assign, min_snr_db, gate_margin, leak_db, max_bias, min_points, report_s0).
+    pair_residue_run: the run of the other mode of a collocated actuator pair (the same
+        sensors): its copy in this run's records is measured and removed (``engine.waves.pair``).
     """
 
     modal_fmax_hz: float | None = None
@@ -77,6 +80,7 @@ class AnalysisSettings:
     max_bias: float = WaveSettings.max_bias
     min_wave_points: int = WaveSettings.min_points
     report_s0: bool = WaveSettings.report_s0
+    pair_residue_run: str | None = None    # the other mode's run of a collocated actuator pair
 
 
 @dataclass
@@ -356,6 +360,14 @@ def _wave_features_one(records: Sequence[Record], rig: Rig, specimen: Specimen,
         force_channel=force.name if force is not None else None,
         trigger_distance_m=trig.distance_m if trig is not None else None, source=source)
     shots = [{name: rec.scaled(name) for name in names} for rec in recs]
+    if settings.pair_residue_run:     # a collocated pair's run: the other mode's copy out (engine.waves.pair)
+        with RunStore(settings.pair_residue_run, "r") as other:
+            others = [{c.name: r.scaled(c.name) for c in r.channels if c.name in names} for r in other.shots("wave")]
+        rays: dict = {}
+        for c in sorted(sensors, key=lambda c: rig.wave_sensor(c.name).distance_m):
+            rays.setdefault(round(rig.wave_sensor(c.name).direction_deg, 6), []).append(c.name)
+        shots, pn = pair.clean_shots(shots, others, list(rays.values()), fs, (freqs[0], freqs[-1]), pre / fs)
+        notes.extend(pn)
     res = waves_pipeline.measure_waves(setup, shots, freqs, ws_settings)
     notes.extend(res.notes)
     out = [{"mode": c.mode, "direction_deg": float(c.direction_deg),

@@ -121,3 +121,19 @@ def test_generator_trigger_onset_is_voted_by_the_sensor_pair(mode, delay):
     onsets, (lo, hi) = survey_onsets([d], [shot])
     assert onsets[0] == pytest.approx(delay, abs=0.3e-6)
     assert lo < onsets[0] < hi
+
+
+def test_clean_shots_removes_the_copy_on_a_ray_and_leaves_a_refused_ray_as_recorded():
+    from engine.waves.pair import clean_shots
+    (sb, ab), (sd, ad) = _records(0.12), _records(0.42)
+    shots, notes = clean_shots([{"B": sb, "D": sd}], [{"B": ab, "D": ad}], [["B", "D"]], FS, (100e3, 260e3),
+                               after_s=PRE / FS)
+    assert "removed from B, D" in notes[0]
+    s0_only = (S_T + S_B) / 2 * _burst(0.12 / C_S) / np.sqrt(0.12)
+    k = PRE + int(round((0.12 / C_A + CYC / F0 / 2) * FS))
+    assert abs(shots[0]["B"] - s0_only)[k - 20:k + 20].max() < 0.1 * abs(sb - s0_only)[k - 20:k + 20].max()
+    # the far record's gate also holds a packet of the run's own mode: refused, the shots kept
+    a0 = _a0(0.2)
+    s = 3.0 * _burst(0.2 / C_A + 8e-6) + np.real(R_TRUE * signal.hilbert(a0))
+    kept, notes = clean_shots([{"D": s}], [{"D": a0}], [["D"]], FS, (100e3, 260e3), after_s=PRE / FS + 20e-6)
+    assert "left as recorded" in notes[0] and np.array_equal(kept[0]["D"], s)
