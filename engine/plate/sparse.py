@@ -31,7 +31,15 @@ from .element import NODE_DOF, combo_scales, shape_2d
 from .mesh import Mesh
 from .warm import COUNTS, WarmStart, warm_eig
 
-__all__ = ["Pattern", "Block", "point_entries", "Added"]
+__all__ = ["Pattern", "Block", "point_entries", "Added", "symmetric_lu"]
+
+
+def symmetric_lu(A: sp.spmatrix):
+    """SuperLU of a symmetric positive definite ``A`` (K - sigma M, sigma below the spectrum):
+    symmetric ordering of A + A', diagonal pivots (the eigen blocks, the surrogate's
+    shift-invert blocks)."""
+    return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                     options={"SymmetricMode": True})
 
 
 @dataclass(frozen=True)
@@ -144,9 +152,7 @@ class Block:
         the block mass data)."""
         nb = self.dofs.size
         # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
-        A = sp.csc_matrix((kd[self.k_pos] - sigma * mb, self.indices, self.indptr), shape=(nb, nb))
-        return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                         options={"SymmetricMode": True})
+        return symmetric_lu(sp.csc_matrix((kd[self.k_pos] - sigma * mb, self.indices, self.indptr), shape=(nb, nb)))
 
     def eig(self, kd: np.ndarray, md: np.ndarray, k: int, sigma: float, n_full: int,
             mass: tuple[np.ndarray, sp.csr_matrix] | None = None, ncv: int | None = None, lu=None):
