@@ -26,7 +26,6 @@ import time
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .lm import STALLED, levenberg_marquardt
 from .problem import (Coords, DataBlock, IdentificationError, Params, Prior, Problem, check_start,
@@ -199,6 +198,10 @@ def nelder_mead_fit(blocks: Sequence[DataBlock], names: Sequence[str], start: Pa
     covariance of the sigma-whitened problem at the minimum (``prior`` as in
     :func:`estimate`, default none).
     """
+    # here, not at the top: scipy.optimize costs ~0.15-0.3 s CPU to import and the default
+    # (Levenberg-Marquardt) path does not use it (bench/RESULTS.md, issue 29 session 27)
+    from scipy.optimize import minimize  # noqa: PLC0415
+
     t0 = time.perf_counter()
     p_start = check_start(names, start)
     coords = Coords(names, p_start, "log")

@@ -29,10 +29,14 @@ Units: Hz; visibility is dimensionless (0 to 1).
 """
 from __future__ import annotations
 
+import importlib.machinery
+import importlib.util
+import os
+import sys
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
+import scipy
 
 __all__ = ["Assignment", "assign", "match", "miss_penalties", "visibility", "SPURIOUS", "MISS", "MISS_UNKNOWN",
            "V_SEEN", "GRID", "BIG"]
@@ -53,6 +57,39 @@ V_SEEN = 0.25
 GRID = 21
 #: the cost of a forbidden pair (never chosen while another assignment exists)
 BIG = 1e12
+
+
+def _linear_sum_assignment():
+    """``scipy.optimize.linear_sum_assignment``, without importing the ``scipy.optimize``
+    package when it is not loaded yet: the function is its compiled module ``_lsap``, while the
+    package's ``__init__`` loads linprog, shgo, scipy.spatial, scipy.fft and the rest, ~0.15-0.3 s
+    CPU of every ``labid identify`` whose default path used nothing else from it (bench/RESULTS.md,
+    issue 29 session 27). The module is registered under its own name, so a later
+    ``import scipy.optimize`` uses this very module; the public import whenever the file is
+    not where scipy keeps it."""
+    name = "scipy.optimize._lsap"
+    mod = sys.modules.get(name)
+    if mod is None and "scipy.optimize" not in sys.modules:
+        folder = os.path.join(os.path.dirname(scipy.__file__), "optimize")
+        for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+            path = os.path.join(folder, "_lsap" + suffix)
+            if os.path.isfile(path):
+                try:
+                    spec = importlib.util.spec_from_file_location(name, path)
+                    mod = importlib.util.module_from_spec(spec)
+                    spec.loader.exec_module(mod)
+                except ImportError:
+                    mod = None
+                else:
+                    sys.modules[name] = mod
+                break
+    if mod is None or not hasattr(mod, "linear_sum_assignment"):
+        from scipy.optimize import linear_sum_assignment  # noqa: PLC0415
+        return linear_sum_assignment
+    return mod.linear_sum_assignment
+
+
+linear_sum_assignment = _linear_sum_assignment()
 
 
 class Assignment(NamedTuple):

@@ -23,6 +23,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from ..laminate import PhysicsError
+from ..plate.sparse import symmetric_lu
 from ..plate.stiffness import q_derivatives, q_vector
 from ..forward.pairing import assign
 from .sobol import sobol
@@ -144,10 +145,7 @@ class RitzSurrogate:
 def shift_invert(K, M, sigma: float, MV: np.ndarray) -> np.ndarray:
     """(K - sigma M)^-1 MV (sigma < 0: K - sigma M is positive definite), columns scaled to
     unit M-norm (the basis is M-orthonormalised on a relative threshold)."""
-    from scipy.sparse.linalg import splu    # loaded with engine.plate
-
-    A = (K - sigma * M).tocsc()
-    Y = splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True}).solve(MV)
+    Y = symmetric_lu(K - sigma * M).solve(MV)
     return Y / np.sqrt(np.maximum(np.einsum("ij,ij->j", Y, M @ Y), 1e-300))
 
 
@@ -202,7 +200,10 @@ def refine(surrogate: RitzSurrogate, names: Sequence[str], start: Mapping[str, f
     six constants crawled along a curved valley (G12 against nu12 and G13): the demo's modal
     fit took 15 LM steps (one plate solve each) to go 782 -> 50 in cost; on the surrogate
     that crawl costs milliseconds per step (bench/RESULTS.md, issue 29 session 25)."""
-    from scipy.optimize import least_squares     # already loaded by engine.forward.pairing
+    # here, not at the top: scipy.optimize costs ~0.15-0.3 s CPU to import, and a combined
+    # (modal + waves) fit whose own start ranks first (the demo's) never refines
+    # (bench/RESULTS.md, issue 29 session 27)
+    from scipy.optimize import least_squares  # noqa: PLC0415
 
     names = [n for n in names if n in start]
     f = np.asarray(measured_hz, float)

@@ -49,7 +49,7 @@ Package-internal (public names shared by the modules of this package; not for
 other layers): ``element.shape_2d``, ``element.combo_scales``,
 ``element.reference_matrices``, ``element.SYM3``/``SYM2``, ``stiffness.q_vector``,
 ``stiffness.q_derivatives``, ``stiffness.material_maps``, ``sparse.Pattern``,
-``sparse.Block``, ``sparse.point_entries``, ``sparse.Added``, ``field.COEF_POWER``, ``field.thickness_weights``,
+``sparse.Block``, ``sparse.point_entries``, ``sparse.Added``, ``sparse.symmetric_lu``, ``field.COEF_POWER``, ``field.thickness_weights``,
 ``field.field_data``, ``sensitivity.coefficient_energies``.
 """
 from .element import NODE_DOF, FEError

@@ -31,7 +31,15 @@ from .element import NODE_DOF, combo_scales, shape_2d
 from .mesh import Mesh
 from .warm import COUNTS, WarmStart, warm_eig
 
-__all__ = ["Pattern", "Block", "point_entries", "Added"]
+__all__ = ["Pattern", "Block", "point_entries", "Added", "symmetric_lu"]
+
+
+def symmetric_lu(A: sp.spmatrix):
+    """SuperLU of a symmetric positive definite ``A`` (K - sigma M, sigma below the spectrum):
+    symmetric ordering of A + A', diagonal pivots (the eigen blocks, the surrogate's
+    shift-invert blocks)."""
+    return spla.splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                     options={"SymmetricMode": True})
 
 
 @dataclass(frozen=True)
@@ -54,28 +62,45 @@ class Pattern:
 
     @classmethod
     def build(cls, mesh: Mesh) -> "Pattern":
-        dofs = mesh.element_dofs
-        ne = dofs.shape[0]
+        """The pattern of ``mesh`` from its node pairs: element DOFs are node-blocked (5 a + k),
+        so the unique (row, column) DOF pairs and each element entry's position follow from
+        the unique NODE pairs, 25x fewer to sort than the 6400 DOF pairs per element (the
+        demo plate's 1.5x mesh: 0.12 -> 0.02 s CPU warm, 0.17-0.25 s cold in identify's
+        profile; bench/RESULTS.md, issue 29 session 27). Equal arrays to a np.unique of
+        the DOF pairs (tests/unit/engine/plate/test_plate_pattern.py)."""
+        conn = np.asarray(mesh.connectivity)
+        ne, nl = conn.shape
+        nd = NODE_DOF
         h = mesh.element_sizes
         hq = np.round(h / max(mesh.length, mesh.width), 12)
         _, first, etype = np.unique(hq, axis=0, return_index=True, return_inverse=True)
         etype = etype.ravel()
-        rows = np.repeat(dofs, 80, axis=1).ravel()
-        cols = np.tile(dofs, (1, 80)).ravel()
-        key = rows.astype(np.int64) * mesh.n_dof + cols
-        ukey, inv = np.unique(key, return_inverse=True)
-        n = mesh.n_dof
-        r, c = np.divmod(ukey, n)
-        indptr = np.searchsorted(r, np.arange(n + 1)).astype(np.int32)
+        nn = mesh.n_dof // nd
+        ukey, ninv = np.unique((conn[:, :, None].astype(np.int64) * nn + conn[:, None, :]).ravel(),
+                               return_inverse=True)
+        na, nb = np.divmod(ukey, nn)
+        nodeptr = np.searchsorted(na, np.arange(nn + 1))
+        deg = np.diff(nodeptr)
+        # DOF row (a, fa) holds the columns nd b + fb over a's neighbours b (ascending), fb < nd
+        row_len = np.repeat(nd * deg, nd)
+        indptr = np.concatenate([[0], np.cumsum(row_len)])
+        within = np.arange(indptr[-1]) - np.repeat(indptr[:-1] - np.repeat(nd * nodeptr[:-1], nd), row_len)
+        c = (nd * nb[:, None] + np.arange(nd)).ravel()[within]
+        fr, fc = np.repeat(np.arange(nn * nd) % nd, row_len), c % nd
+        # element entry (local node i, field fa; local node j, field fb), row node a: position
+        # nd^2 nodeptr[a] + nd fa deg[a] + nd (q - nodeptr[a]) + fb, q its node pair's index
+        f = np.arange(nd)
+        base = nd * ninv.reshape(ne, nl, nl) + (nd * nd - nd) * nodeptr[conn][:, :, None]
+        inv = (base[:, :, None, :, None] + nd * f[None, None, :, None, None] * deg[conn][:, :, None, None, None]
+               + f[None, None, None, None, :]).reshape(ne, -1)
         local = (etype[:, None] * 6400 + np.arange(6400)).ravel()
-        scatter = sp.csr_matrix((np.ones(inv.size), (inv, local)),
-                                shape=(ukey.size, len(first) * 6400))
-        fr, fc = r % NODE_DOF, c % NODE_DOF
+        scatter = sp.csr_matrix((np.ones(inv.size), (inv.ravel(), local)),
+                                shape=(c.size, len(first) * 6400))
         pair = np.minimum(fr, fc) * 10 + np.maximum(fr, fc)
         m_mask = (fr == fc) | (pair == 3) | (pair == 14)  # same field, u-bx, v-by
         m_indptr = np.concatenate([[0], np.cumsum(np.add.reduceat(m_mask, indptr[:-1]))])
         cross = (fr < 2) != (fc < 2)
-        return cls(indptr, c.astype(np.int32), scatter, inv.reshape(ne, 6400), etype,
+        return cls(indptr.astype(np.int32), c.astype(np.int32), scatter, inv, etype,
                    combo_scales(h[first]), m_mask, m_indptr.astype(np.int32), cross)
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
@@ -127,9 +152,7 @@ class Block:
         the block mass data)."""
         nb = self.dofs.size
         # K - sigma M is symmetric: its CSR arrays are also its CSC arrays
-        A = sp.csc_matrix((kd[self.k_pos] - sigma * mb, self.indices, self.indptr), shape=(nb, nb))
-        return spla.splu(A, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                         options={"SymmetricMode": True})
+        return symmetric_lu(sp.csc_matrix((kd[self.k_pos] - sigma * mb, self.indices, self.indptr), shape=(nb, nb)))
 
     def eig(self, kd: np.ndarray, md: np.ndarray, k: int, sigma: float, n_full: int,
             mass: tuple[np.ndarray, sp.csr_matrix] | None = None, ncv: int | None = None, lu=None):

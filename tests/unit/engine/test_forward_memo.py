@@ -70,3 +70,31 @@ def test_models_on_equal_meshes_share_the_pattern_and_solve_alike():
     fa = a.solve(8, params=NOMINAL, material=MAT).frequencies_hz
     fb = b.solve(8, params=NOMINAL, material=MAT).frequencies_hz
     assert np.array_equal(fa, fb)
+
+
+def test_modal_jacobian_reuses_the_sensitivities_of_the_same_solve():
+    """The eigenvalue sensitivities are computed once per (constants, names) and solve; the
+    Jacobian equals central differences of the frequencies (not the memo's own output), also
+    from the memo; other names or constants are computed afresh."""
+    model = PlateModel.build(SPEC.laminate, SPEC.length, SPEC.width, mesh=(4, 4))
+    fwd = ModalForward(model, 4, material=MAT)
+    calls = []
+    orig = model.eigen_sensitivities
+
+    def counted(*a, **k):
+        calls.append(1)
+        return orig(*a, **k)
+    model.eigen_sensitivities = counted
+    names = ["E1", "G12"]
+    f1, J1 = fwd.jacobian(NOMINAL, names)
+    f2, J2 = fwd.jacobian(dict(NOMINAL), names)
+    assert len(calls) == 1 and np.array_equal(J1, J2) and np.array_equal(f1, f2)
+    for k, n in enumerate(names):
+        h = 1e-4 * NOMINAL[n]
+        fd = (fwd.predict({**NOMINAL, n: NOMINAL[n] + h}) - fwd.predict({**NOMINAL, n: NOMINAL[n] - h})) / (2 * h)
+        np.testing.assert_allclose(J2[:, k], fd, rtol=1e-4, atol=1e-6 * np.abs(fd).max())
+    _, J3 = fwd.jacobian(NOMINAL, ["E1"])               # other names: computed
+    assert len(calls) == 2
+    np.testing.assert_allclose(J3[:, 0], J1[:, 0], rtol=1e-9)
+    fwd.jacobian({**NOMINAL, "E1": 1.01 * NOMINAL["E1"]}, names)   # other constants: computed
+    assert len(calls) == 3
