@@ -153,3 +153,19 @@ def test_merge_runs_one_point_run_takes_the_others_resolution():
     far = (np.array([140e3]), _a0_like([140e3]), np.array([2.0]))      # 15.7 % above 121: its own
     f, v, s, n = merge.merge_runs([a, lone, far])
     assert list(n) == [1, 2, 1, 1]
+
+
+def test_a_frequency_one_shot_of_several_measured_is_not_a_point():
+    """The end of a reassigned range that one shot alone reached (its noise moved its
+    instantaneous frequency) is not the shots' point; frequencies most shots measured are."""
+    from engine.wavefeatures.pipeline import combine_shots
+    f = np.array([90e3, 95e3, 100e3, 105e3])
+    good = [waves.GroupVelocity(f, np.array([np.nan, 9000.0, 9001.0, 9002.0]), np.array([np.nan, 90.0, 90, 90]),
+                                np.array([0, 1, 1, 1], bool)) for _ in range(2)]
+    lone = waves.GroupVelocity(f, np.array([9650.0, 9010.0, 9005.0, np.nan]), np.full(4, 90.0),
+                               np.array([1, 1, 1, 0], bool))
+    g = combine_shots(good + [lone])
+    assert list(g.valid) == [False, True, True, True]          # 1 of 3 at 90 kHz; 2 of 3 at 105 kHz
+    assert g.velocity_m_s[1] == pytest.approx(9010 / 3 + 6000) and np.isnan(g.velocity_m_s[0])
+    one = combine_shots([lone])                                  # a single shot is its own point
+    assert list(one.valid) == [True, True, True, False]
