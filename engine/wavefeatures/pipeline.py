@@ -135,7 +135,8 @@ def combine_shots(curves: list[waves.GroupVelocity], floor: np.ndarray | None = 
     term, m/s) added in quadrature. A frequency is valid where more than half the shots
     measured it: at the ends of a reassigned range the one shot whose noise moved its
     instantaneous frequency furthest would give the point alone (issue 24, session 27: a
-    sweep's S0 90 kHz +7.3 % was one shot of 2, 6 and 12 alike; the shots' mean there -0.3 %)."""
+    sweep's S0 90 kHz +7.3 % was one shot's, with 2 and with 12 shots; the 12 shots' mean
+    delays there lie within 0.3 % of the true plate's)."""
     f = curves[0].frequencies_hz
     V = np.array([c.velocity_m_s for c in curves])
     S = np.array([c.sigma_m_s for c in curves])
