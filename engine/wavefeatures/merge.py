@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import waves
 
-__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "off_curve", "scattered", "odd_one",
+__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "run_resolution", "off_curve", "scattered", "odd_one",
            "names"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
@@ -86,31 +86,65 @@ def independent_mask(freqs_hz, valid, which: Sequence, spacing: float = SPACING)
     return keep
 
 
+def run_resolution(freqs_hz) -> float | None:
+    """A run's frequency resolution, relative: the smallest gap between its consecutive
+    independent points over the upper one's frequency (``independent_mask`` kept each point
+    the first one past its wavelets' independence spacing, so the smallest gap is that
+    spacing to within one grid step: 6-11 % for cmor2-5..cmor2-3, 32 % for cmor2-1).
+    None with fewer than 2 points."""
+    f = np.sort(np.asarray(freqs_hz, float))
+    f = f[np.isfinite(f) & (f > 0)]
+    if f.size < 2:
+        return None
+    return float(np.min(np.diff(f) / f[1:]))
+
+
 def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_tol: float = 0.01
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One dispersion curve from the independent points of several runs (e.g. tone bursts at
-    different centre frequencies): ``curves`` are (frequency, velocity, sigma) arrays. Points
-    of different runs at the same frequency (within ``rel_tol``) are averaged with inverse-
-    variance weights, their sigma being the larger of the propagated one and half their
-    spread (two runs that disagree say so); the others are kept with their own sigma.
-    Points off the smooth curve through the others (``off_curve``) are left out.
-    Returns (frequency, velocity, sigma, number of runs behind each point), by frequency."""
-    pts = sorted((float(f), float(v), float(s)) for F, V, S in curves for f, v, s in zip(F, V, S)
-                 if np.isfinite(v) and np.isfinite(s) and s > 0)
+    different centre frequencies): ``curves`` are (frequency, velocity, sigma) arrays.
+
+    Points of different runs closer than the runs' own independence spacing
+    (``run_resolution``: the smaller of the two runs'; not below ``rel_tol``; a run with one
+    point takes the median of the others') measure the group delay over nearly the same band:
+    they are one point, not two (issue 24, session 27: two bursts' points 1.3-4 % apart
+    counted twice while a run's own points lie 7-16 % apart). They are combined: inverse-
+    variance mean of velocity and frequency (exact to first order on a smooth curve), sigma
+    the larger of the propagated one and half their spread about the local slope of the smooth
+    curve through all points (two runs that disagree say so; the curve's own dispersion
+    between their frequencies is not a disagreement). Points off the smooth curve through the
+    others (``off_curve``) are left out. Returns (frequency, velocity, sigma, number of runs
+    combined in each point), by frequency."""
+    pts = sorted((float(f), float(v), float(s), r) for r, (F, V, S) in enumerate(curves)
+                 for f, v, s in zip(F, V, S) if np.isfinite(v) and np.isfinite(s) and s > 0)
+    if not pts:
+        e = np.array([])
+        return e, e, e, np.array([], int)
+    res = [run_resolution([p[0] for p in pts if p[3] == r]) for r in range(len(curves))]
+    known = [x for x in res if x is not None]
+    res = [x if x is not None else (float(np.median(known)) if known else rel_tol) for x in res]
+    P = np.array([p[:3] for p in pts])
+    slope = _slope(P[:, 0], P[:, 1], P[:, 2])
     out_f, out_v, out_s, out_n = [], [], [], []
     i = 0
     while i < len(pts):
+        grp, runs = [pts[i]], {pts[i][3]}
         j = i + 1
-        while j < len(pts) and pts[j][0] - pts[i][0] <= rel_tol * pts[i][0]:
+        while j < len(pts) and pts[j][3] not in runs and \
+                pts[j][0] - grp[-1][0] < max(rel_tol, min(res[pts[j][3]], res[grp[-1][3]])) * pts[j][0]:
+            grp.append(pts[j])
+            runs.add(pts[j][3])
             j += 1
-        grp = pts[i:j]
-        w = np.array([1.0 / p[2] ** 2 for p in grp])
+        ff = np.array([p[0] for p in grp])
         vv = np.array([p[1] for p in grp])
-        v = float(np.sum(w * vv) / np.sum(w))
-        s = float(1.0 / np.sqrt(np.sum(w)))
+        w = np.array([1.0 / p[2] ** 2 for p in grp])
+        fm = float(np.sum(w * ff) / np.sum(w)) if len(grp) > 1 else float(ff[0])
+        v = float(np.sum(w * vv) / np.sum(w)) if len(grp) > 1 else float(vv[0])
+        s = float(1.0 / np.sqrt(np.sum(w))) if len(grp) > 1 else grp[0][2]
         if len(grp) > 1:
-            s = max(s, 0.5 * float(vv.max() - vv.min()))
-        out_f.append(float(np.mean([p[0] for p in grp])))
+            r = vv - slope(fm) * (ff - fm)
+            s = max(s, 0.5 * float(r.max() - r.min()))
+        out_f.append(fm)
         out_v.append(v)
         out_s.append(s)
         out_n.append(len(grp))
@@ -118,6 +152,20 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
     F, V, S, N = np.array(out_f), np.array(out_v), np.array(out_s), np.array(out_n, int)
     bad = off_curve(F, V, S)
     return F[~bad], V[~bad], S[~bad], N[~bad]
+
+
+def _slope(f_hz, v, sigma, degree: int = 3):
+    """dv/df (m/s per Hz) of the smooth curve through the points (a polynomial in ln f,
+    weights 1/sigma, degree at most ``degree`` and 2 below the point count); 0 with fewer than
+    4 distinct frequencies."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    if np.unique(f).size < 4:
+        return lambda x: 0.0
+    x0 = float(f.max())
+    c = np.polynomial.polynomial.polyfit(np.log(f / x0), v, min(degree, np.unique(f).size - 2),
+                                         w=1.0 / np.maximum(s, 1e-3 * np.abs(v)))
+    dc = np.polynomial.polynomial.polyder(c)
+    return lambda x: float(np.polynomial.polynomial.polyval(np.log(x / x0), dc)) / x
 
 
 def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e-3) -> np.ndarray:

@@ -282,8 +282,11 @@ def _merge_sweep(parts, notes: list[str]):
         out.append({"mode": mode, "direction_deg": float(direction), "frequency_hz": [float(x) for x in F],
                     "group_velocity_m_s": [float(x) for x in V], "sigma_m_s": [float(x) for x in S],
                     "dropped": drop})
+        both = int(np.sum(N > 1))
         notes.append(f"{mode} along {direction:g} deg: {F.size} points merged from {len(ws)} burst(s) "
-                     f"{F.min() / 1e3:.3g}-{F.max() / 1e3:.3g} kHz, each with its own sigma")
+                     f"{F.min() / 1e3:.3g}-{F.max() / 1e3:.3g} kHz, each with its own sigma"
+                     + (f"; {both} of them combine {int(N[N > 1].sum())} points of different bursts closer "
+                        "than the bursts' frequency resolution" if both else ""))
     info = {"dropped": dropped, "mismatch": list(mismatch.values())}
     if np.isfinite(lo):
         info["band_hz"] = [float(lo), float(hi)]

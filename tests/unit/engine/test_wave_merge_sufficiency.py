@@ -120,3 +120,52 @@ def test_one_wrong_point_of_a_short_curve_goes_alone():
     f = np.array([140e3, 158e3, 177e3, 199e3, 223e3])
     v = np.array([5559.0, 5066.0, 5435.0, 5131.0, 5328.0])
     assert merge.odd_one(f, v, np.array([3.0, 35.0, 38.0, 1.0, 1.0])) is None
+
+
+def _a0_like(f):
+    """A smooth, dispersive curve (A0's low-frequency law, c_g ~ sqrt(f)): numpy-made, no model."""
+    return 40.0 * np.sqrt(np.asarray(f, float))
+
+
+def test_merge_runs_combines_points_closer_than_the_runs_resolution():
+    """Two bursts whose own points lie 10 % apart: their points 1.5 % and 4 % apart are one
+    point each (weighted mean frequency and velocity, on the curve to first order; the curve's
+    own dispersion between them does not inflate the sigma), points 12 % apart stay two."""
+    fa = np.array([100e3, 110e3, 121e3, 133.1e3])
+    fb = np.array([123e3, 138.4e3, 152.2e3])        # 1.65 % above 121, 3.98 % above 133.1
+    a = (fa, _a0_like(fa), np.full(4, 2.0))
+    b = (fb, _a0_like(fb), np.full(3, 2.0))
+    assert merge.run_resolution(fa) == pytest.approx(10e3 / 110e3)
+    f, v, s, n = merge.merge_runs([a, b])
+    assert list(n) == [1, 1, 2, 2, 1]
+    assert f[2] == pytest.approx(122e3) and f[3] == pytest.approx(0.5 * (133.1e3 + 138.4e3))
+    # first order: the chord's midpoint of sqrt lies below the curve by ~ (df/f)^2 / 32
+    assert np.all(np.abs(v / _a0_like(f) - 1) < 1e-4)
+    assert s[2] == pytest.approx(2.0 / np.sqrt(2.0), rel=1e-3) and s[3] < 2.0
+    f1, v1, s1, n1 = merge.merge_runs([a, (fb, _a0_like(fb) * np.array([1.02, 1.0, 1.0]), np.full(3, 2.0))])
+    assert n1[2] == 2 and s1[2] >= 0.5 * 0.02 * _a0_like(123e3) * 0.99    # they disagree: it says so
+
+
+def test_merge_runs_one_point_run_takes_the_others_resolution():
+    fa = np.array([100e3, 110e3, 121e3])
+    a = (fa, _a0_like(fa), np.full(3, 2.0))
+    lone = (np.array([113e3]), _a0_like([113e3]), np.array([2.0]))     # 2.7 % above 110: one point
+    far = (np.array([140e3]), _a0_like([140e3]), np.array([2.0]))      # 15.7 % above 121: its own
+    f, v, s, n = merge.merge_runs([a, lone, far])
+    assert list(n) == [1, 2, 1, 1]
+
+
+def test_a_frequency_one_shot_of_several_measured_is_not_a_point():
+    """The end of a reassigned range that one shot alone reached (its noise moved its
+    instantaneous frequency) is not the shots' point; frequencies most shots measured are."""
+    from engine.wavefeatures.pipeline import combine_shots
+    f = np.array([90e3, 95e3, 100e3, 105e3])
+    good = [waves.GroupVelocity(f, np.array([np.nan, 9000.0, 9001.0, 9002.0]), np.array([np.nan, 90.0, 90, 90]),
+                                np.array([0, 1, 1, 1], bool)) for _ in range(2)]
+    lone = waves.GroupVelocity(f, np.array([9650.0, 9010.0, 9005.0, np.nan]), np.full(4, 90.0),
+                               np.array([1, 1, 1, 0], bool))
+    g = combine_shots(good + [lone])
+    assert list(g.valid) == [False, True, True, True]          # 1 of 3 at 90 kHz; 2 of 3 at 105 kHz
+    assert g.velocity_m_s[1] == pytest.approx(9010 / 3 + 6000) and np.isnan(g.velocity_m_s[0])
+    one = combine_shots([lone])                                  # a single shot is its own point
+    assert list(one.valid) == [True, True, True, False]

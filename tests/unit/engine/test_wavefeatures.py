@@ -37,11 +37,14 @@ def test_combine_shots_is_the_mean_with_a_scatter_based_sigma_and_a_bias_floor()
     # the mean of 100 and 110; the scatter std (ddof 1) sqrt(50) over sqrt(2) = 5
     assert g.velocity_m_s[0] == pytest.approx(105.0, rel=1e-12)
     assert g.sigma_m_s[0] == pytest.approx(5.0, rel=1e-12)
-    # one shot only: its own value and sigma
-    assert (g.velocity_m_s[1], g.sigma_m_s[1]) == (50.0, 1.0)
+    # one shot of two only: not a point (more than half the shots must measure it; session 27)
+    assert np.isnan(g.velocity_m_s[1])
+    # a single shot: its own value and sigma
+    one = combine_shots([a])
+    assert (one.velocity_m_s[1], one.sigma_m_s[1]) == (50.0, 1.0)
     # shots agreeing better than their noise: the noise sigma over sqrt(n), 4 / sqrt(2)
     assert g.sigma_m_s[2] == pytest.approx(4.0 / np.sqrt(2.0), rel=1e-12)
-    assert g.valid.tolist() == [True, True, True]
+    assert g.valid.tolist() == [True, False, True]
     # the wavelet-bias term joins in quadrature: hypot(5, 12) = 13
     h = combine_shots([a, b], floor=np.array([12.0, 0.0, 0.0]))
     assert h.sigma_m_s[0] == pytest.approx(13.0, rel=1e-12)

@@ -1,0 +1,87 @@
+"""Issue 24, session 27 (h51): where a sweep's wrong S0 point along 0 deg comes from.
+
+The rig of bench_unknown_plate.py ``sweep_far`` (independent records: legendre_safe's transfer
+through the rig's chain; plate = file x 1/0.6, the file 40 % soft), 12 shots of one burst. Per
+analysis frequency of one wavelet: the S0 source-to-sensor delay of each shot against the true
+plate's (0.4 m / group velocity of legendre_safe), the shots' scatter and the mean sigma each
+shot's pick reports; then the burst's S0 0 deg feature points from its first 2 shots and from
+all 12 (``analysis._wave_features_one``, the code under test).
+
+Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_sweep_shots.py [burst_hz] [wavelet]
+(default 100e3 cmor1-1; ~140 s CPU: the records' transfer ~75 s, the analyses ~60 s)
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from bench._machine import machine  # noqa: E402
+from bench.bench_unknown_plate import HERE, records, reference  # noqa: E402
+from engine.wavefeatures import pipeline  # noqa: E402
+from labid.inputs.rig import rig_from_text  # noqa: E402
+from labid.inputs.specimen import load_specimen  # noqa: E402
+from labid.workflows import analysis  # noqa: E402
+from labid.workflows.analysis import AnalysisSettings  # noqa: E402
+from mock_hw.rig import truth_laminate  # noqa: E402
+
+
+def main(argv) -> None:
+    fb = float(argv[0]) if argv else 100e3
+    wl_name = argv[1] if len(argv) > 1 else "cmor1-1"
+    print(f"machine: {machine()}")
+    c0 = time.process_time()
+    large = load_specimen(str(HERE / "rigs" / "cfrp_large.toml"))
+    path = HERE / "rigs" / "cfrp_pzt_sweep_2dir_far.toml"
+    rig = rig_from_text(path.read_text(), str(path))
+    rig = replace(rig, sim=replace(rig.sim, truth_scale=(("*", 1 / 0.6),)))
+    true = truth_laminate(large.laminate, rig.sim.truth_scale)
+    n_burst = len(rig.wave_source.burst.sweep_hz)
+    recs = [r for r in records(rig, large, 12 * n_burst, 0, "independent")
+            if r.meta["burst_frequency_hz"] == fb]
+    rig_f = replace(rig, wave_source=replace(rig.wave_source, burst=rig.wave_source.burst.at(fb)))
+    log: dict = {}
+    orig = pipeline._velocity
+
+    def traced(d, mode, wl, rec, cache):
+        g, out = orig(d, mode, wl, rec, cache)
+        if mode == "S0" and d.direction == 0.0 and d.strict and wl.name == wl_name:
+            far, src = out["far"], out["source"]
+            log[id(rec)] = (far.times_s - src.times_s, np.hypot(far.sigma_s, src.sigma_s), far.valid & src.valid,
+                            d.freqs.copy())
+        return g, out
+    pipeline._velocity = traced
+    try:
+        for n in (2, len(recs)):
+            log.clear()
+            feats = analysis._wave_features_one(recs[:n], rig_f, large, AnalysisSettings(), [])[0]
+            for w in (w for w in feats if w["mode"] == "S0" and w["direction_deg"] == 0.0):
+                f, v, s = (np.array(w[k]) for k in ("frequency_hz", "group_velocity_m_s", "sigma_m_s"))
+                ref = reference(true, 0.0, f)["S0"]
+                print(f"burst {fb / 1e3:g} kHz, {n} shots, S0 0 deg points: " + ", ".join(
+                    f"{a / 1e3:.1f} kHz {100 * (b / r - 1):+.2f} % (sigma {100 * e / r:.2f} %)"
+                    for a, b, e, r in zip(f, v, s, ref)))
+    finally:
+        pipeline._velocity = orig
+    if not log:
+        print(f"{wl_name}: not among the wavelets measured on all shots")
+        return
+    D, S, V, F = (np.array([x[k] for x in log.values()]) for k in range(4))
+    F = F[0]
+    exp = 0.4 / reference(true, 0.0, F)["S0"]
+    print(f"{wl_name}, {D.shape[0]} shots, per analysis frequency: delay error of the shots' mean vs the true "
+          "plate, the shots' scatter (std, ddof 1), the mean sigma a shot reports, their ratio")
+    for i in np.flatnonzero(V.sum(axis=0) >= 6)[::4]:
+        m = V[:, i]
+        sc = D[m, i].std(ddof=1)
+        print(f"  {F[i] / 1e3:6.1f} kHz  n {m.sum():2d}  mean {1e6 * (D[m, i].mean() - exp[i]):+5.2f} us  "
+              f"scatter {1e6 * sc:4.2f} us  sigma {1e6 * S[m, i].mean():4.2f} us  ratio {sc / S[m, i].mean():4.2f}")
+    print(f"CPU {time.process_time() - c0:.1f} s")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
