@@ -20,6 +20,7 @@ import pytest
 from scipy import signal
 
 from labid.cli.main import main as labid
+from tests.wave_signals import burst_of
 
 ROOT = Path(__file__).resolve().parents[2]
 REAL = ROOT / "bench" / "import_real"
@@ -29,10 +30,7 @@ A_B = 0.7 * np.exp(1j * np.radians(20.0))
 R_TRUE = (1 - A_B) / (1 + A_B)
 
 
-def _burst(delay: float = 0.0) -> np.ndarray:
-    t = (np.arange(N) - PRE) / FS - delay
-    T = CYC / F0
-    return np.where((t >= 0) & (t <= T), np.sin(np.pi * t / T) ** 2 * np.sin(2 * np.pi * F0 * t), 0.0)
+_burst = burst_of(N, FS, F0, CYC, PRE)     # _burst(delay_s=0.0)
 
 
 def _a0(r: float) -> np.ndarray:

@@ -20,6 +20,7 @@ from engine.wavefeatures.picks import Sensor, WaveSettings, WaveSetup, direction
 from engine.wavefeatures.pipeline import measure_waves
 from engine.wavefeatures.predict import SourceModel
 from engine.wavefeatures.survey import survey_direction
+from tests.wave_signals import burst_of
 
 FS, F0, CYC, PRE, N = 62.5e6, 500e3, 5, 300, 4096
 C_A, P_A, C_S = 2900.0, 0.15, 5300.0
@@ -27,10 +28,7 @@ R = (0.06, 0.105)
 FREQS = np.linspace(420e3, 580e3, 60)
 
 
-def _burst(delay: float = 0.0) -> np.ndarray:
-    t = (np.arange(N) - PRE) / FS - delay
-    T = CYC / F0
-    return np.where((t >= 0) & (t <= T), np.sin(np.pi * t / T) ** 2 * np.sin(2 * np.pi * F0 * t), 0.0)
+_burst = burst_of(N, FS, F0, CYC, PRE)     # _burst(delay_s=0.0)
 
 
 def _a0(r: float) -> np.ndarray:

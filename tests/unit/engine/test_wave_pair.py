@@ -15,6 +15,7 @@ from scipy import signal
 
 from engine.waves import WaveError
 from engine.waves.pair import cancel_residue, residue_ratio
+from tests.wave_signals import burst_of
 
 FS, F0, CYC, PRE, N = 5.0e6, 180e3, 5, 500, 4096
 C_S, C_A = 5300.0, 2900.0                     # S0 group velocity; A0 group velocity at F0, m/s
@@ -23,10 +24,7 @@ S_T, S_B = 1.0, 0.95
 R_TRUE = (A_T - A_B) / (A_T + A_B)           # A0 copy in (top + bottom) / 2 per A0 in (top - bottom) / 2
 
 
-def _burst(delay: float = 0.0) -> np.ndarray:
-    t = (np.arange(N) - PRE) / FS - delay
-    T = CYC / F0
-    return np.where((t >= 0) & (t <= T), np.sin(np.pi * t / T) ** 2 * np.sin(2 * np.pi * F0 * t), 0.0)
+_burst = burst_of(N, FS, F0, CYC, PRE)     # _burst(delay_s=0.0)
 
 
 def _a0(r: float, delay: float = 0.0) -> np.ndarray:
