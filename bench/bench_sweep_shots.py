@@ -32,7 +32,7 @@ from mock_hw.rig import truth_laminate  # noqa: E402
 
 def table(wl_name, entries, true) -> None:
     """Per analysis frequency of one wavelet: the shots' mean delay error, scatter, mean sigma."""
-    D, S, V, F, N, TF, SF, TS, SS = (np.array([x[k] for x in entries]) for k in range(9))
+    D, S, V, F, N, TF, SF, TS, SS, SNR, FI = (np.array([x[k] for x in entries]) for k in range(11))
     F = F[0]
     exp = 0.4 / reference(true, 0.0, F)["S0"]
     print(f"{wl_name}, {D.shape[0]} shots, per analysis frequency: delay error of the shots' mean vs the true "
@@ -45,7 +45,8 @@ def table(wl_name, entries, true) -> None:
               f"scatter {1e6 * sc:4.2f} us  sigma {1e6 * S[m, i].mean():4.2f} us  ratio {sc / S[m, i].mean():4.2f}"
               f"  noise part {1e6 * N[m, i].mean():4.2f} us  ratio {sc / N[m, i].mean():4.2f}"
               f"  | far alone {1e6 * TF[m, i].std(ddof=1):4.2f} / {1e6 * SF[m, i].mean():4.2f} us"
-              f"  source alone {1e6 * TS[m, i].std(ddof=1):4.2f} / {1e6 * SS[m, i].mean():4.2f} us")
+              f"  source alone {1e6 * TS[m, i].std(ddof=1):4.2f} / {1e6 * SS[m, i].mean():4.2f} us"
+              f"  far SNR {np.median(SNR[m, i]):.1f} dB, finst {np.median(FI[m, i]) / 1e3:.1f} kHz")
 
 
 def main(argv) -> None:
@@ -72,7 +73,8 @@ def main(argv) -> None:
             nf, ns = (noise_part.get(id(a), (a, a.sigma_s))[1] for a in (far, src))
             log[(wl.name, id(rec))] = (far.times_s - src.times_s, np.hypot(far.sigma_s, src.sigma_s),
                                        far.valid & src.valid, d.freqs.copy(), np.hypot(nf, ns),
-                                       far.times_s, far.sigma_s, src.times_s, src.sigma_s)
+                                       far.times_s, far.sigma_s, src.times_s, src.sigma_s, far.snr_db,
+                                       far.inst_freq_hz)
         return g, out
     pipeline._velocity = traced
     # the noise part of a pick's sigma, before the foreign packets' shift bound (a systematic
