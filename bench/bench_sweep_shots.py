@@ -8,7 +8,8 @@ shot's pick reports; then the burst's S0 0 deg feature points from its first 2 s
 all 12 (``analysis._wave_features_one``, the code under test).
 
 Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_sweep_shots.py [burst_hz] [wavelet]
-(default 100e3 cmor1-1; wavelet "all": a table per wavelet; ~90-140 s CPU: the records' transfer ~75 s, the analyses ~60 s)
+(default 100e3 cmor1-1; wavelet "all": a table per wavelet; ~80-140 s CPU: the records'
+transfer ~75 s, the analyses ~10-60 s)
 """
 from __future__ import annotations
 
