@@ -143,6 +143,8 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
               f"{f.min() / 1e3:.0f}-{f.max() / 1e3:.0f} kHz; error vs the true plate "
               f"{100 * e.min():+.2f} .. {100 * e.max():+.2f} %, sigma {100 * (s / ref).min():.2f} .. "
               f"{100 * (s / ref).max():.2f} %, max |err|/sigma {z.max():.1f}")
+        print("    points (kHz, error %, sigma %): " + ", ".join(
+            f"{fi / 1e3:.0f} {100 * ei:+.2f} ({100 * si:.2f})" for fi, ei, si in zip(f, e, s / ref)))
         dr = w.get("dropped", {})
         if dr:
             print("    dropped: " + ", ".join(f"{k} x{v}" for k, v in sorted(dr.items(), key=lambda x: -x[1])[:4]))
