@@ -28,7 +28,7 @@ Pure: arrays in, numbers out. Units: Hz, m/s, s.
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
