@@ -131,6 +131,42 @@ def med(xs: list[float]) -> str:
     return f"{statistics.median(xs):.3f}"
 
 
+def timed_reps(trees, reps: int, cwd: Path, argv: list[str], before=None, after=None):
+    """``reps`` rounds of the child script ``argv`` under each (label, tree), ``before`` /
+    ``after`` each run (``after`` only when it succeeded): per label the CPU and wall (s)
+    the children report, their last ``size``, whether every ``ok`` held, the first failure."""
+    cpu = {lab: [] for lab, _ in trees}
+    wall = {lab: [] for lab, _ in trees}
+    size, ok, fails = {}, True, {}
+    for _ in range(reps):
+        for lab, tree in trees:
+            if before is not None:
+                before()
+            try:
+                _, _, out = run_child(tree, argv, cwd)
+            except Failed as e:
+                fails.setdefault(lab, str(e))
+                continue
+            got = json.loads(out.strip().splitlines()[-1])
+            cpu[lab].append(got["cpu"])
+            wall[lab].append(got["wall"])
+            if "size" in got:
+                size[lab] = got["size"]
+            ok &= got["ok"]
+            if after is not None:
+                after()
+    return cpu, wall, size, ok, fails
+
+
+def times_cells(trees, cpu: dict, wall: dict) -> str:
+    """The CPU and wall medians of each tree, as table cells."""
+    return " | ".join(f"{med(cpu[lab])} | {med(wall[lab])}" if cpu[lab] else "failed | failed" for lab, _ in trees)
+
+
+def failed_cells(fails: dict) -> str:
+    return "".join(f"; {lab} failed: {msg}" for lab, msg in fails.items())
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--demo", type=Path, required=True, help="folder of `labid demo --seed 0 --workers 1 --out`")
@@ -166,54 +202,30 @@ def main(argv=None) -> int:
               + " | run file bytes before -> after (" + ", ".join(lab for lab, _ in trees) + ") | checks |")
         print("|---" * (2 + 2 * len(trees) + 1) + "|")
         for k in kept:
-            cpu = {lab: [] for lab, _ in trees}
-            wall = {lab: [] for lab, _ in trees}
-            size, ok, fails = {}, True, {}
-            for _ in range(a.reps):
-                for lab, tree in trees:
-                    run = work / "run.h5"
-                    shutil.copyfile(fixtures[k], run)
-                    try:
-                        _, _, out = run_child(tree, [str(script), str(run), str(data_file), str(k)], cwd)
-                    except Failed as e:
-                        fails.setdefault(lab, str(e))
-                        continue
-                    got = json.loads(out.strip().splitlines()[-1])
-                    cpu[lab].append(got["cpu"])
-                    wall[lab].append(got["wall"])
-                    size[lab] = got["size"]
-                    ok &= got["ok"]
-                    for p in work.glob(".run.h5*"):
-                        p.unlink()
-            print(f"| {k} | " + " | ".join(f"{med(cpu[lab])} | {med(wall[lab])}" if cpu[lab] else "failed | failed"
-                                             for lab, _ in trees)
+            run = work / "run.h5"
+
+            def fresh(k=k, run=run):
+                shutil.copyfile(fixtures[k], run)
+
+            def tidy():
+                for p in work.glob(".run.h5*"):
+                    p.unlink()
+            cpu, wall, size, ok, fails = timed_reps(trees, a.reps, cwd, [str(script), str(run), str(data_file), str(k)],
+                                                    before=fresh, after=tidy)
+            print(f"| {k} | " + times_cells(trees, cpu, wall)
                   + f" | {fixtures[k].stat().st_size} -> " + ", ".join(str(size.get(lab, "-")) for lab, _ in trees)
                   + f" | {'numbers, history, JSON copy right' if ok else 'WRONG'} ({a.reps} reps, medians)"
-                  + "".join(f"; {lab} failed: {msg}" for lab, msg in fails.items()) + " |", flush=True)
+                  + failed_cells(fails) + " |", flush=True)
         hscript = work / "history.py"
         hscript.write_text(HISTORY)
         print("\n### result_history of the kept identifications (own process; CPU incl. forked children)\n")
         print("| kept | " + " | ".join(f"{lab} CPU s | {lab} wall s" for lab, _ in trees) + " | checks |")
         print("|---" * (2 + 2 * len(trees)) + "|")
         for k in kept:
-            cpu = {lab: [] for lab, _ in trees}
-            wall = {lab: [] for lab, _ in trees}
-            ok, fails = True, {}
-            for _ in range(a.reps):
-                for lab, tree in trees:
-                    try:
-                        _, _, out = run_child(tree, [str(hscript), str(fixtures[k]), str(k)], cwd)
-                    except Failed as e:
-                        fails.setdefault(lab, str(e))
-                        continue
-                    got = json.loads(out.strip().splitlines()[-1])
-                    cpu[lab].append(got["cpu"])
-                    wall[lab].append(got["wall"])
-                    ok &= got["ok"]
-            print(f"| {k} | " + " | ".join(f"{med(cpu[lab])} | {med(wall[lab])}" if cpu[lab] else "failed | failed"
-                                             for lab, _ in trees)
+            cpu, wall, _, ok, fails = timed_reps(trees, a.reps, cwd, [str(hscript), str(fixtures[k]), str(k)])
+            print(f"| {k} | " + times_cells(trees, cpu, wall)
                   + f" | {'numbers and writers right' if ok else 'WRONG'} ({a.reps} reps, medians)"
-                  + "".join(f"; {lab} failed: {msg}" for lab, msg in fails.items()) + " |", flush=True)
+                  + failed_cells(fails) + " |", flush=True)
         print("\n### whole `labid identify features.json --quiet --json X` (own process, wait4 CPU)\n")
         print("| kept before | " + " | ".join(f"{lab} CPU s | {lab} wall s" for lab, _ in trees) + " | CPU of each run |")
         print("|---" * (2 + 2 * len(trees)) + "|")
