@@ -94,7 +94,11 @@ def absent_level(W_far: np.ndarray, t: np.ndarray, t_ref: np.ndarray, r_far: flo
     ``found_v``: the found packet's measured c_g (NaN where not seen); ``expected``: the
     mode's nominal level relative to the found mode's at the far sensor; ``width``: the found
     packet's half-width (s) where no nearer record is given; ``W_rest``: |W| of the far record
-    less the found packet (``found_removed``), used instead of the |W| difference when given.
+    less the found packet (``residue_scalogram``): per frequency the lower of its maximum and
+    the |W| difference's is kept (both bound the mode from above; on numpy records the
+    residue is the tighter with a short burst, -20 dB with no S0, the difference with a
+    10-cycle 250 kHz burst whose dispersion the filter, fitted off the mode's window, carries
+    over less well; tests/unit/engine/test_wave_lone.py, bench/RESULTS.md session 28 h56).
 
     Per frequency, what of the far record inside the mode's possible times the found packet
     does not explain: with a nearer record, the far |W| less the near one moved by the found
@@ -116,9 +120,8 @@ def absent_level(W_far: np.ndarray, t: np.ndarray, t_ref: np.ndarray, r_far: flo
         if not near.any() or not inside.any():
             continue
         peak = float(W_far[i, near].max())
-        if W_rest is not None:
-            rest = W_rest[i, inside]
-        elif W_near is not None and r_near < r_far:
+        cap = float(W_rest[i, inside].max()) if W_rest is not None else math.inf
+        if W_near is not None and r_near < r_far:
             # the found packet's own delay between the sensors: its maxima, each near its survey time
             at_near = np.abs(t - t_ref[i] - r_near / found_v[i]) <= width[i]
             if not at_near.any():
@@ -127,12 +130,14 @@ def absent_level(W_far: np.ndarray, t: np.ndarray, t_ref: np.ndarray, r_far: flo
             moved = np.interp(t - delay, t, W_near[i], left=0.0, right=0.0)
             g = peak / max(float(moved[near].max()), 1e-300)
             rest = np.abs(W_far[i] - g * moved)[inside]
+        elif W_rest is not None:
+            rest = W_rest[i, inside]
         else:
             inside &= ~near
             if not inside.any():
                 continue
             rest = W_far[i, inside]
-        out.append(float(rest.max()) / peak / expected[i])
+        out.append(min(float(rest.max()), cap) / peak / expected[i])
     if len(out) < 3:
         return None
     return float(min(max(out), 1.0))
