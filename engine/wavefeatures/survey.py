@@ -451,7 +451,7 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
             v_k = (nominal[k] * med * (1 - mu), nominal[k] * med * (1 + mu))
             rest = None if nr is None else lone.residue_scalogram(
                 [(r[far.channel], r[nr.channel]) for r in use[:4]], fs, pre, (nr.distance_m, far.distance_m),
-                meas[found], v_k, t_ref, width, freqs, wl)
+                meas[found], v_k, t_ref, width, freqs, wl, setup.source.force())
             fac = lone.absent_level(A[far.channel], t - float(np.median(sensor_delay(far, freqs))), t_ref,
                                     far.distance_m, v_k, meas[found], rel, width, None if nr is None else A[nr.channel],
                                     0.0 if nr is None else nr.distance_m, rest)
