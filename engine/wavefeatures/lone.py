@@ -157,8 +157,8 @@ def found_removed(far: np.ndarray, near: np.ndarray, fs: float, delay_s: float, 
     sensors (eriknbd: A0's change read as S0 at -21 to -41 dB of its nominal level). Denser
     taps (1 / (8 f_max)) fit the out-of-band rest and blow up over the skipped samples (on
     eriknbd 340-640 kHz the residue there reached 0.05-10 x the far peak). None when the span
-    holds fewer than 3 taps, the fit is shorter than 4 x the taps, or the residue over the
-    skipped samples exceeds the far record there (the filter does not carry over); else
+    holds fewer than 3 taps, the fit is shorter than 4 x the taps, or the filter's output over
+    the skipped samples exceeds 4 x the far record's energy there (it does not carry over); else
     (residue, the same operator for any (far, near) pair of records)."""
     lo, hi = band_hz
     sos = signal.butter(4, [0.8 * lo, min(1.2 * hi, 0.45 * fs)], "bandpass", fs=fs, output="sos")
@@ -180,8 +180,10 @@ def found_removed(far: np.ndarray, near: np.ndarray, fs: float, delay_s: float, 
     h = np.linalg.lstsq(moved(rows), x[rows], rcond=None)[0]
     res = x - moved(np.arange(x.size)) @ h
     s0, s1 = max(skip[0], 0), min(skip[1], x.size)
-    if s1 > s0 and np.sum(res[s0:s1] ** 2) > np.sum(x[s0:s1] ** 2):
-        return None          # the filter does not carry over to the skipped samples: it cannot say
+    if s1 > s0 and np.sum((x - res)[s0:s1] ** 2) > 4.0 * np.sum(x[s0:s1] ** 2):
+        # the filter's output over the skipped samples far over the far record there: it does
+        # not carry over (an absent packet's near copy moved onto them is ~ its far one)
+        return None
 
     def residue_of(far_like: np.ndarray, near_like: np.ndarray) -> np.ndarray:
         yy = np.concatenate([np.zeros(pad), signal.sosfiltfilt(sos, near_like)])
