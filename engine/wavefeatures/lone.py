@@ -20,7 +20,9 @@ A foreign mode the nominal predicts but the survey did not find keeps its predic
 (timed with the measured ratios) but not its predicted level: ``absent_level`` measures, at
 the farthest sensor, the strongest scalogram maximum where that mode could be (its nominal
 times scaled as the picker will scale them) apart from the found packets, relative to the found
-packet, against the level the nominal expects there. The picker's overlap bound then uses
+packet, against the level the nominal expects there: in the far record less the found packet
+moved from the near one by a filter fitted between them (``residue_scalogram``), over the
+share of an absent packet that survives that removal. The picker's overlap bound then uses
 the level the records allow, not the model's.
 
 Pure: arrays in, numbers out. Units: Hz, m/s, s.
