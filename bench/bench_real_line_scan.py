@@ -20,8 +20,11 @@ file's, and its rate: 41.7 MHz for the 250 kHz file, 62.5 MHz for the others), `
 interpolated (linearly in f between the bursts' centres) and against the same two positions'
 envelope peaks (numpy/scipy only).
 
-Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_real_line_scan.py
+Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_real_line_scan.py [--pairs]
 (the repository is mirrored with the ``fetch`` tool: github:eriknbd/Lamb_wave_analisis).
+``--pairs``: labid takes two sensors per direction (the nearest and the farthest); the other
+positions of the line are given to it as other pairs (``PAIRS``, mm), each analysed alone, every
+point against the same estimates: do the positions agree, and does another pair hold more points?
 """
 from __future__ import annotations
 
@@ -46,6 +49,7 @@ HERE = ROOT / "bench" / "import_real"
 MIRROR = Path("/work/.mirror/eriknbd+Lamb_wave_analisis/repo")
 COMMIT = "a137a37a041fd01d747478ae596fd5a2031f289e"
 FILE = "all_data/test_Al_tren_2105.mat"
+PAIRS = ((0.0, 45.0), (0.0, 22.5), (22.5, 45.0), (10.0, 40.0), (5.0, 45.0))     # mm, for --pairs
 POS = np.array([0.0] + list(np.arange(2.5, 35.01, 2.5)) + list(np.arange(35.5, 45.01, 0.5))) * 1e-3
 
 
@@ -88,6 +92,23 @@ def pair_cg(a: np.ndarray, f0: float) -> float:
     return 0.045 / (tp[1] - tp[0])
 
 
+def _column(mm: float) -> int:
+    """The matrix column (1-35) of the position ``mm`` along the line."""
+    return 1 + int(np.argmin(np.abs(POS - mm * 1e-3)))
+
+
+def _rig_for(rig_text: str, f0: float, fs: float, n: int, pair: tuple[float, float]) -> str:
+    """The rig with the burst's centre frequency, rate and samples, and P00 / P45 moved to the
+    pair's positions (mm; distances from the assumed source 60 mm before position 0)."""
+    txt = (rig_text.replace("frequency_hz = 500.0e3", f"frequency_hz = {f0:.1f}")
+           .replace("rate_hz = 62.5e6", f"rate_hz = {fs:.6g}").replace("samples = 4026", f"samples = {n}"))
+    if pair != (0.0, 45.0):
+        a, b = (0.06 + p * 1e-3 for p in pair)
+        txt = (txt.replace("x = 0.46\n", f"x = {0.40 + a:.4f}\n").replace("distance_m = 0.06\n", f"distance_m = {a:.4f}\n")
+               .replace("x = 0.505\n", f"x = {0.40 + b:.4f}\n").replace("distance_m = 0.105\n", f"distance_m = {b:.4f}\n"))
+    return txt
+
+
 def main() -> None:
     print(f"machine: {machine()}")
     if not MIRROR.exists():
@@ -99,19 +120,20 @@ def main() -> None:
     print("\nindependent estimates, m/s: 35-position line (0-45 mm) and the 0 / 45 mm pair; "
           "Rayleigh-Lamb A0 / S0 at 1.0 | 1.5 mm:")
     keys = ("fss_0250kHz", "fss_0340kHz", "fss_0500kHz", "fss_0640kHz")
-    est, pair = {}, {}
+    est, pair_est = {}, {}
     for key in keys:
         f0 = float(key[4:8]) * 1e3
         v, rms = line_cg(mats[key], f0)
-        est[f0], pair[f0] = v, pair_cg(mats[key], f0)
+        est[f0], pair_est[f0] = v, pair_cg(mats[key], f0)
         a1, s1 = reference(1.0e-3, np.array([f0]))
         a15, s15 = reference(1.5e-3, np.array([f0]))
-        print(f"  {f0 / 1e3:.0f} kHz: line {v:.0f} (rms {rms * 1e9:.0f} ns), pair {pair[f0]:.0f}; A0 {a1[0]:.0f} | "
+        print(f"  {f0 / 1e3:.0f} kHz: line {v:.0f} (rms {rms * 1e9:.0f} ns), pair {pair_est[f0]:.0f}; A0 {a1[0]:.0f} | "
               f"{a15[0]:.0f}, S0 {s1[0]:.0f} | {s15[0]:.0f}")
     fl = np.array(sorted(est))
     rig_text = (HERE / "erik_line_rig.toml").read_text()
     rows = []
-    for key in keys:
+    pairs = PAIRS if "--pairs" in sys.argv[1:] else PAIRS[:1]
+    for key, pair in ((k, p) for k in keys for p in pairs):
         f0 = float(key[4:8]) * 1e3
         a = mats[key]
         for spec in ("erik_al_nominal_low.toml", "erik_al_nominal_high.toml"):
@@ -119,11 +141,11 @@ def main() -> None:
                 d = Path(tmp)
                 rig = d / "rig.toml"        # the burst's own centre frequency (the file says 500 kHz)
                 fs = 1.0 / float(np.median(np.diff(a[:, 0])))    # 41.7 MHz for 250 kHz, else 62.5
-                rig.write_text(rig_text.replace("frequency_hz = 500.0e3", f"frequency_hz = {f0:.1f}")
-                               .replace("rate_hz = 62.5e6", f"rate_hz = {fs:.6g}")
-                               .replace("samples = 4026", f"samples = {a.shape[0]}"))
-                write_csv(d / "P00.csv", "P00", a[:, 1])
-                write_csv(d / "P45.csv", "P45", a[:, 35])
+                rig.write_text(_rig_for(rig_text, f0, fs, a.shape[0], pair))
+                write_csv(d / "P00.csv", "P00", a[:, _column(pair[0])])
+                write_csv(d / "P45.csv", "P45", a[:, _column(pair[1])])
+                if len(pairs) > 1:
+                    print(f"\npositions {pair[0]:g} / {pair[1]:g} mm:", end="")
                 code, out, wi, ci = cli(["import", str(d / "P00.csv"), str(d / "P45.csv"), "--rig", str(rig),
                                          "--specimen", str(HERE / spec), "--out", str(d / "run.h5"), "--rate",
                                          f"{fs:.6g}", "--pretrigger", "0", "--units", "P00=V,P45=V", "--quiet"])
@@ -152,13 +174,14 @@ def main() -> None:
                 for w in doc.get("waves", []):
                     for fi, vi, si in zip(w["frequency_hz"], w["group_velocity_m_s"], w["sigma_m_s"]):
                         ref = float(np.interp(fi, fl, [est[f] for f in fl]))
-                        rows.append((f0, spec, w["mode"], fi, vi, si, ref, pair[f0]))
+                        rows.append((f0, spec, w["mode"], fi, vi, si, ref, pair_est[f0], pair))
                         print(f"  {w['mode']} {fi / 1e3:.0f} kHz {vi:.0f} +- {si:.0f}: {100 * (vi / ref - 1):+.1f} % of the "
-                              f"line estimate ({ref:.0f}, interpolated), {100 * (vi / pair[f0] - 1):+.1f} % of the "
-                              f"pair's ({pair[f0]:.0f})")
-    print("\nsummary: burst | nominal | mode | f kHz | labid m/s +- sigma | vs line | vs pair | |err| / sigma (line)")
-    for f0, spec, m, fi, vi, si, ref, pr in rows:
-        print(f"  {f0 / 1e3:.0f} | {spec.split('_')[-1][:-5]} | {m} | {fi / 1e3:.0f} | {vi:.0f} +- {si:.0f} | "
+                              f"line estimate ({ref:.0f}, interpolated), {100 * (vi / pair_est[f0] - 1):+.1f} % of the "
+                              f"0 / 45 mm pair's ({pair_est[f0]:.0f})")
+    print("\nsummary: positions mm | burst | nominal | mode | f kHz | labid m/s +- sigma | vs line | vs 0/45 pair | "
+          "|err| / sigma (line)")
+    for f0, spec, m, fi, vi, si, ref, pr, pp in rows:
+        print(f"  {pp[0]:g}/{pp[1]:g} | {f0 / 1e3:.0f} | {spec.split('_')[-1][:-5]} | {m} | {fi / 1e3:.0f} | {vi:.0f} +- {si:.0f} | "
               f"{100 * (vi / ref - 1):+.1f} % | {100 * (vi / pr - 1):+.1f} % | {abs(vi - ref) / si:.1f}")
 
 

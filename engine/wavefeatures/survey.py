@@ -448,10 +448,13 @@ def survey_direction(d: Direction, shots: Sequence[Mapping[str, np.ndarray]],
                 continue
             rel = level[k] / np.maximum(level[found], 1e-300)
             nr = d.sensors[0] if d.sensors[0].distance_m < far.distance_m else None
+            v_k = (nominal[k] * med * (1 - mu), nominal[k] * med * (1 + mu))
+            rest = None if nr is None else lone.residue_scalogram(
+                [(r[far.channel], r[nr.channel]) for r in use[:4]], fs, pre, (nr.distance_m, far.distance_m),
+                meas[found], v_k, t_ref, width, freqs, wl, setup.source.force())
             fac = lone.absent_level(A[far.channel], t - float(np.median(sensor_delay(far, freqs))), t_ref,
-                                    far.distance_m, (nominal[k] * med * (1 - mu), nominal[k] * med * (1 + mu)),
-                                    meas[found], rel, width, None if nr is None else A[nr.channel],
-                                    0.0 if nr is None else nr.distance_m)
+                                    far.distance_m, v_k, meas[found], rel, width, None if nr is None else A[nr.channel],
+                                    0.0 if nr is None else nr.distance_m, rest)
             if fac is not None and fac < ABSENT:
                 absent[k] = fac
                 notes.append(f"direction {d.direction:g} deg: no {k} packet in the records where the picker will "
