@@ -18,6 +18,7 @@ sigma-scaling check (does sigma fall as 1 / sqrt(shots)?).
 
 Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_sweep_seeds.py [--seeds 0,1,2] [--files soft,stiff]
      [--variants equal2,equal4] [--out FILE]
+     .venv/bin/python bench/bench_sweep_seeds.py --summary FILE [FILE ...]   (tables from the JSON lines)
 """
 from __future__ import annotations
 
@@ -62,7 +63,47 @@ def unequal12(shots, max_curves=12):
             for a, b in zip(edges[:-1], edges[1:])], "12 unequal groups"
 
 
+def summary(paths) -> None:
+    """Per file, curve and shot count: points and within 1 % per seed, max |err| / sigma, rms of
+    err / sigma over all seeds' points; then how a point's sigma falls with the shots (points of
+    one seed matched within 2 % in frequency): the median ratio against sqrt(n_before / n_after)."""
+    rows = [json.loads(ln) for p in paths for ln in Path(p).read_text().splitlines() if ln.strip()]
+    seen = {}
+    for r in rows:                      # a later line of the same case replaces an earlier one
+        seen[(r["file"], r["shots"], r["seed"], r["mode"], r["direction"])] = r
+    rows = list(seen.values())
+    key = lambda r: (r["file"], r["mode"], r["direction"])  # noqa: E731
+    for k in sorted({key(r) for r in rows}):
+        print(f"\n{k[0]}, {k[1]} {k[2]:g} deg")
+        for label in sorted({r["shots"] for r in rows if key(r) == k}, key=lambda x: (int(x.split()[0]), x)):
+            rs = sorted((r for r in rows if key(r) == k and r["shots"] == label), key=lambda r: r["seed"])
+            e = np.concatenate([r["err"] for r in rs])
+            z = np.abs(e) / np.concatenate([r["sigma"] for r in rs])
+            worst = max(((abs(x), x, f, s, r["seed"]) for r in rs for x, f, s in zip(r["err"], r["f"], r["sigma"])))
+            print(f"  {label:>14}: seeds {','.join(str(r['seed']) for r in rs)}; points / within 1 % "
+                  + ", ".join(f"{len(r['err'])}/{int(np.sum(np.abs(r['err']) <= 0.01))}" for r in rs)
+                  + f"; max |err| {100 * worst[0]:.2f} % ({worst[2] / 1e3:.0f} kHz, sigma {100 * worst[3]:.2f} %, "
+                  f"seed {worst[4]}); max |err|/sigma {z.max():.1f}, rms {np.sqrt(np.mean(z ** 2)):.2f}; "
+                  f"sigma median {100 * np.median(np.concatenate([r['sigma'] for r in rs])):.2f} %")
+        for a, b, na, nb in (("2", "6", 2, 6), ("6", "16", 6, 16), ("2", "16", 2, 16), ("6", "16 equal2", 6, 16)):
+            ratios = []
+            for r in (r for r in rows if key(r) == k and r["shots"] == a):
+                o = next((q for q in rows if key(q) == k and q["shots"] == b and q["seed"] == r["seed"]), None)
+                if o is None or not o["f"]:
+                    continue
+                for f, s in zip(r["f"], r["sigma"]):
+                    j = int(np.argmin(np.abs(np.array(o["f"]) - f)))
+                    if abs(o["f"][j] / f - 1) < 0.02:
+                        ratios.append(o["sigma"][j] / s)
+            if ratios:
+                q = np.percentile(ratios, [25, 50, 75])
+                print(f"  sigma {b} shots / {a} shots: median {q[1]:.2f} (quartiles {q[0]:.2f}-{q[2]:.2f}, "
+                      f"{len(ratios)} matched points); 1 / sqrt(shots) gives {np.sqrt(na / nb):.2f}")
+
+
 def main(argv) -> None:
+    if argv and argv[0] == "--summary":
+        return summary(argv[1:])
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--files", default="soft,stiff")
