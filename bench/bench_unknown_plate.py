@@ -134,8 +134,9 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
     print(f"\n{name}: file {off * 100:+.0f} % vs the plate, {model} records, {n} shots, seed {seed} "
           f"(analysis {wall:.1f} s wall, {cpu:.1f} s CPU)")
     for ln in notes:
-        if "arrives" in ln or "found in the records" in ln or "no velocity" in ln or "merged from" in ln:
-            print("  note:", ln[:160])
+        if "arrives" in ln or "found in the records" in ln or "no velocity" in ln or "merged from" in ln \
+                or ln.startswith("more shots"):
+            print("  note:", ln if ln.startswith("more shots") else ln[:160])
     rows = []
     for w in feats:
         f = np.array(w["frequency_hz"])

@@ -4,13 +4,14 @@ and their curves combined into one (``combine_shots``, after). Moved out of
 """
 from __future__ import annotations
 
+import math
 from typing import Mapping, Sequence
 
 import numpy as np
 
 from .. import waves
 
-__all__ = ["MAX_CURVES", "combine_shots", "stack_shots"]
+__all__ = ["MAX_CURVES", "TARGET_REL", "combine_shots", "stack_shots", "more_shots_note"]
 
 
 def combine_shots(curves: list[waves.GroupVelocity], floor: np.ndarray | None = None) -> waves.GroupVelocity:
@@ -54,3 +55,29 @@ def stack_shots(shots: Sequence[Mapping[str, np.ndarray]], max_curves: int = MAX
            for a, b in zip(edges[:-1], edges[1:])]
     return out, (f"{n} wave shots averaged in {max_curves} groups of {n // max_curves}-{-(-n // max_curves)} "
                  "(aligned on their trigger); curves and their scatter from the groups")
+
+
+#: the relative sigma more shots should bring a point to: the 1 % the features are held to, at 2 sigma
+TARGET_REL = 0.005
+
+
+def more_shots_note(curve: str, points, held: float = 0.01, target: float = TARGET_REL) -> str:
+    """A console line for the points of ``curve`` (e.g. 'S0 along 0 deg') whose sigma exceeds
+    ``held`` of their velocity: how many shots per burst would bring each to ``target``, if the
+    shots' noise sets it (sigma x sqrt(n / N); measured to hold within ~20 % on the sweep rig:
+    bench/RESULTS.md, issue 24, session 28). ``points``: (frequency Hz, sigma / velocity, shots
+    per burst (of the run without a sweep), [centre frequencies Hz of the bursts combined in it,
+    none without a sweep]). '' when none exceeds."""
+    parts = []
+    for f, rel, n, bursts in points:
+        if not (rel > held and n > 0):
+            continue
+        need = math.ceil(n * (rel / target) ** 2)
+        which = " and ".join(f"{b / 1e3:.4g}" for b in bursts)
+        of = f" of the {which} kHz burst{'s' if len(bursts) > 1 else ''}" if bursts else ""
+        parts.append(f"{f / 1e3:.0f} kHz: sigma {100 * rel:.1f} % from {n} shots{of}; ~{need} would bring it to "
+                     f"{100 * target:.1f} %")
+    if not parts:
+        return ""
+    return (f"more shots: {curve}, " + "; ".join(parts) + f" (if the shots' noise sets the sigma; the features are "
+            f"held to {100 * held:.0f} %)")
