@@ -42,19 +42,27 @@ MAX_CURVES = 12     # shots beyond this are averaged in groups (bench/RESULTS.md
 
 
 def stack_shots(shots: Sequence[Mapping[str, np.ndarray]], max_curves: int = MAX_CURVES):
-    """At most ``max_curves`` records per channel: consecutive shots averaged in equal groups
-    (aligned on their trigger, as recorded) when there are more. The curves are then measured
-    per group; their scatter over the groups gives the sigma, as over shots (the group means
-    are independent), and the noise of each falls as 1 / sqrt(group size). Returns the records
+    """At most ``max_curves`` records per channel: beyond that, consecutive shots averaged in
+    groups of ONE size (aligned on their trigger, as recorded), so every group has the same
+    noise: the curves are measured per group and their scatter over the groups gives the sigma
+    as over shots (a scatter of groups of 1 and 2 shots mixes two noise levels; issue 24,
+    session 28), and each group's noise falls as 1 / sqrt(size), raising the SNR of a weak
+    band edge before its pick. The size: from ceil(n / max_curves) up to n // 4 (at least 4
+    groups for a scatter), the one that leaves the fewest shots over (then the smallest); the
+    shots left over (fewer than a group) are not used and the note says so. Returns the records
     and a note ('' when nothing was averaged)."""
     n = len(shots)
     if n <= max_curves:
         return list(shots), ""
-    edges = np.linspace(0, n, max_curves + 1).round().astype(int)
-    out = [{ch: np.mean([shots[k][ch] for k in range(a, b)], axis=0) for ch in shots[a]}
-           for a, b in zip(edges[:-1], edges[1:])]
-    return out, (f"{n} wave shots averaged in {max_curves} groups of {n // max_curves}-{-(-n // max_curves)} "
-                 "(aligned on their trigger); curves and their scatter from the groups")
+    lo = -(-n // max_curves)
+    size = min(range(lo, max(lo, n // 4) + 1), key=lambda g: (n % g, g))
+    k = n // size
+    out = [{ch: np.mean([shots[j][ch] for j in range(i * size, (i + 1) * size)], axis=0) for ch in shots[0]}
+           for i in range(k)]
+    left = n - k * size
+    return out, (f"{n} wave shots averaged in {k} groups of {size} (aligned on their trigger); curves and their "
+                 "scatter from the groups"
+                 + (f"; the last {left} shot(s), fewer than a group, not used" if left else ""))
 
 
 #: the relative sigma more shots should bring a point to: the 1 % the features are held to, at 2 sigma
