@@ -71,11 +71,13 @@ TARGET_REL = 0.005
 
 def more_shots_note(curve: str, points, held: float = 0.01, target: float = TARGET_REL) -> str:
     """A console line for the points of ``curve`` (e.g. 'S0 along 0 deg') whose sigma exceeds
-    ``held`` of their velocity: how many shots per burst would bring each to ``target``, if the
-    shots' noise sets it (sigma x sqrt(n / N); measured to hold within ~20 % on the sweep rig:
-    bench/RESULTS.md, issue 24, session 28). ``points``: (frequency Hz, sigma / velocity, shots
-    per burst (of the run without a sweep), [centre frequencies Hz of the bursts combined in it,
-    none without a sweep]). '' when none exceeds."""
+    ``held`` of their velocity: how many shots per burst would bring each to ``target`` at the
+    least, sigma x sqrt(n / N) (the shots' noise alone; on the sweep rig, 3 noise seeds, the
+    sigma fell to 0.60-0.64 of its 2-shot value with 6 shots (sqrt: 0.58) and to 0.40-0.48 with
+    16 (0.35): the bias terms in it do not fall; bench/RESULTS.md, issue 24, session 28).
+    ``points``: (frequency Hz, sigma / velocity, shots per burst (of the run without a sweep),
+    [centre frequencies Hz of the bursts combined in it, none without a sweep]). '' when none
+    exceeds."""
     parts = []
     for f, rel, n, bursts in points:
         if not (rel > held and n > 0):
@@ -83,9 +85,9 @@ def more_shots_note(curve: str, points, held: float = 0.01, target: float = TARG
         need = math.ceil(n * (rel / target) ** 2)
         which = " and ".join(f"{b / 1e3:.4g}" for b in bursts)
         of = f" of the {which} kHz burst{'s' if len(bursts) > 1 else ''}" if bursts else ""
-        parts.append(f"{f / 1e3:.0f} kHz: sigma {100 * rel:.1f} % from {n} shots{of}; ~{need} would bring it to "
-                     f"{100 * target:.1f} %")
+        parts.append(f"{f / 1e3:.0f} kHz: sigma {100 * rel:.1f} % from {n} shots{of}; {100 * target:.1f} % needs "
+                     f"{need} or more")
     if not parts:
         return ""
-    return (f"more shots: {curve}, " + "; ".join(parts) + f" (if the shots' noise sets the sigma; the features are "
-            f"held to {100 * held:.0f} %)")
+    return (f"more shots: {curve}, " + "; ".join(parts) + f" (sigma x sqrt(shots / N), the shots' noise alone; "
+            f"the features are held to {100 * held:.0f} %)")

@@ -46,8 +46,8 @@ def test_more_shots_note_scales_the_sigma_as_one_over_sqrt_shots():
     # 1.41 % from 2 shots: 1.41 sqrt(2 / N) <= 0.5 % needs N >= 15.9 -> 16 (sweep_far, S0 0 deg, 99 kHz)
     note = more_shots_note("S0 along 0 deg", [(99e3, 0.0141, 2, [100e3]), (208e3, 0.0069, 2, [200e3]),
                                               (164e3, 0.012, 6, [150e3, 200e3])])
-    assert note.startswith("more shots: S0 along 0 deg, 99 kHz: sigma 1.4 % from 2 shots of the 100 kHz burst; ~16 ")
+    assert note.startswith("more shots: S0 along 0 deg, 99 kHz: sigma 1.4 % from 2 shots of the 100 kHz burst; 0.5 % needs 16 or more")
     assert "208 kHz" not in note                                  # under the 1 % the features are held to
     # two bursts combined: each burst's shots, 1.2 % sqrt(6 / 35) = 0.497 %
-    assert "164 kHz: sigma 1.2 % from 6 shots of the 150 and 200 kHz bursts; ~35 " in note
+    assert "164 kHz: sigma 1.2 % from 6 shots of the 150 and 200 kHz bursts; 0.5 % needs 35 or more" in note
     assert more_shots_note("A0 along 90 deg", [(50e3, 0.004, 2, [60e3])]) == ""
