@@ -98,7 +98,7 @@ def per_burst(true_lam):
     the true plate (where a sweep's wrong points come from), then merges as before."""
     merge_sweep = analysis._merge_sweep
 
-    def traced(parts, notes):
+    def traced(parts, notes, *rest):
         for f, (feats, *_rest) in parts:
             for w in (w for w in feats if w["mode"] == "S0"):
                 F, V, S = (np.array(w[k]) for k in ("frequency_hz", "group_velocity_m_s", "sigma_m_s"))
@@ -106,7 +106,7 @@ def per_burst(true_lam):
                 print(f"    burst {f / 1e3:.0f} kHz, S0 {w['direction_deg']:g} deg: " + ", ".join(
                     f"{a / 1e3:.0f} kHz {100 * (v / r - 1):+.2f} % (sigma {100 * e / r:.2f} %)"
                     for a, v, e, r in zip(F, V, S, ref)))
-        return merge_sweep(parts, notes)
+        return merge_sweep(parts, notes, *rest)
     return traced
 
 
