@@ -72,9 +72,10 @@ TARGET_REL = 0.005
 def more_shots_note(curve: str, points, held: float = 0.01, target: float = TARGET_REL) -> str:
     """A console line for the points of ``curve`` (e.g. 'S0 along 0 deg') whose sigma exceeds
     ``held`` of their velocity: how many shots per burst would bring each to ``target`` at the
-    least, sigma x sqrt(n / N) (the shots' noise alone; on the sweep rig, 3 noise seeds, the
-    sigma fell to 0.60-0.64 of its 2-shot value with 6 shots (sqrt: 0.58) and to 0.40-0.48 with
-    16 (0.35): the bias terms in it do not fall; bench/RESULTS.md, issue 24, session 28).
+    least, sigma x sqrt(n / N) (the shots' noise alone; on the sweep rig, 3 noise seeds, both
+    files, the median sigma fell to 0.58-0.64 of its 2-shot value with 6 shots (sqrt: 0.58) and
+    to 0.40-0.56 with 16 (0.35): the bias terms in it do not fall; bench/RESULTS.md, issue 24,
+    session 28).
     ``points``: (frequency Hz, sigma / velocity, shots per burst (of the run without a sweep),
     [centre frequencies Hz of the bursts combined in it, none without a sweep]). '' when none
     exceeds."""
