@@ -11,8 +11,8 @@ Records: 'simulated' = ``mock_hw`` with labid's SAFE (engine.safe) as the plate;
 = the same rig with the plate's transfer functions from ``legendre_safe`` (the hook
 ``mock_hw.waves.transfer_model``).
 
-Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_unknown_plate.py [case ...] [simulated|independent] [stiff|soft]
-(stiff: the plate x 1/1.4, the file 40 % too stiff; soft: x 1/0.6)
+Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_unknown_plate.py [case ...] [simulated|independent] [stiff|soft] [seed=N]
+(stiff: the plate x 1/1.4, the file 40 % too stiff; soft: x 1/0.6; seed: the rig's noise draws, default 0)
 """
 from __future__ import annotations
 
@@ -98,7 +98,7 @@ def per_burst(true_lam):
     the true plate (where a sweep's wrong points come from), then merges as before."""
     merge_sweep = analysis._merge_sweep
 
-    def traced(parts, notes):
+    def traced(parts, notes, *rest):
         for f, (feats, *_rest) in parts:
             for w in (w for w in feats if w["mode"] == "S0"):
                 F, V, S = (np.array(w[k]) for k in ("frequency_hz", "group_velocity_m_s", "sigma_m_s"))
@@ -106,30 +106,37 @@ def per_burst(true_lam):
                 print(f"    burst {f / 1e3:.0f} kHz, S0 {w['direction_deg']:g} deg: " + ", ".join(
                     f"{a / 1e3:.0f} kHz {100 * (v / r - 1):+.2f} % (sigma {100 * e / r:.2f} %)"
                     for a, v, e, r in zip(F, V, S, ref)))
-        return merge_sweep(parts, notes)
+        return merge_sweep(parts, notes, *rest)
     return traced
 
 
-def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSettings(), seed=0):
-    """One case: records of the true plate (spec's moduli x scale), analysed with spec as nominal."""
+def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSettings(), seed=0, recs=None,
+             trace=True):
+    """One case: records of the true plate (spec's moduli x scale), analysed with spec as nominal.
+    ``recs``: the records to analyse (default: ``n`` shots of noise seed ``seed``); ``trace``:
+    print each burst's S0 points too. Returns (rows, analysis CPU s, notes); a row per curve:
+    (mode, direction, points, fmin, fmax, relative error, relative sigma, |err| / sigma, f)."""
     rig = replace(rig, sim=replace(rig.sim, truth_scale=(("*", scale),)))
     true_lam = truth_laminate(spec.laminate, rig.sim.truth_scale)
-    recs = records(rig, spec, n, seed, model)
+    recs = records(rig, spec, n, seed, model) if recs is None else recs
+    n = len(recs)
     notes: list[str] = []
     t, c = time.perf_counter(), time.process_time()
     merge_sweep = analysis._merge_sweep
-    analysis._merge_sweep = per_burst(true_lam)
+    if trace:
+        analysis._merge_sweep = per_burst(true_lam)
     try:
         feats, curves, _, _, info = wave_features(recs, rig, spec, settings, notes)
     finally:
         analysis._merge_sweep = merge_sweep
     wall, cpu = time.perf_counter() - t, time.process_time() - c
     off = 1 / scale - 1
-    print(f"\n{name}: file {off * 100:+.0f} % vs the plate, {model} records, {n} shots "
+    print(f"\n{name}: file {off * 100:+.0f} % vs the plate, {model} records, {n} shots, seed {seed} "
           f"(analysis {wall:.1f} s wall, {cpu:.1f} s CPU)")
     for ln in notes:
-        if "arrives" in ln or "found in the records" in ln or "no velocity" in ln or "merged from" in ln:
-            print("  note:", ln[:160])
+        if "arrives" in ln or "found in the records" in ln or "no velocity" in ln or "merged from" in ln \
+                or ln.startswith("more shots"):
+            print("  note:", ln if ln.startswith("more shots") else ln[:160])
     rows = []
     for w in feats:
         f = np.array(w["frequency_hz"])
@@ -138,11 +145,12 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
         ref = reference(true_lam, w["direction_deg"], f)[w["mode"]]
         e = v / ref - 1
         z = np.abs(v - ref) / s
-        rows.append((w["mode"], w["direction_deg"], f.size, f.min(), f.max(), e, s / ref, z))
+        rows.append((w["mode"], w["direction_deg"], f.size, f.min(), f.max(), e, s / ref, z, f))
         print(f"  {w['mode']} {w['direction_deg']:g} deg: {f.size} independent points "
-              f"{f.min() / 1e3:.0f}-{f.max() / 1e3:.0f} kHz; error vs the true plate "
-              f"{100 * e.min():+.2f} .. {100 * e.max():+.2f} %, sigma {100 * (s / ref).min():.2f} .. "
-              f"{100 * (s / ref).max():.2f} %, max |err|/sigma {z.max():.1f}")
+              f"{f.min() / 1e3:.0f}-{f.max() / 1e3:.0f} kHz, {int(np.sum(np.abs(e) <= 0.01))} within 1 %; "
+              f"error vs the true plate {100 * e.min():+.2f} .. {100 * e.max():+.2f} %, sigma "
+              f"{100 * (s / ref).min():.2f} .. {100 * (s / ref).max():.2f} %, max |err|/sigma {z.max():.1f}, "
+              f"rms {np.sqrt(np.mean(z ** 2)):.2f}")
         print("    points (kHz, error %, sigma %): " + ", ".join(
             f"{fi / 1e3:.0f} {100 * ei:+.2f} ({100 * si:.2f})" for fi, ei, si in zip(f, e, s / ref)))
         dr = w.get("dropped", {})
@@ -159,7 +167,7 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
         if (m, float(dd)) not in reported:
             print(f"  {m} {dd} deg: not reported; dropped " + ", ".join(f"{k} x{v}" for k, v in
                                                                         sorted(d.items(), key=lambda x: -x[1])[:4]))
-    return rows, cpu
+    return rows, cpu, notes
 
 
 def main(argv) -> None:
@@ -181,6 +189,7 @@ def main(argv) -> None:
         "noise_v = 2.0e-4", "noise_v = 1.0e-7"), "bench/rigs/cfrp_pencil_edge_0.toml (noise 0.1 uV)")
     edge = {d: rig_from_text((HERE / "rigs" / f"cfrp_pencil_edge_{d}.toml").read_text(),
                              f"bench/rigs/cfrp_pencil_edge_{d}.toml") for d in (0, 90)}
+    seed = next((int(a.split("=", 1)[1]) for a in argv if a.startswith("seed=")), 0)
     cases = {
         "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
         "two_dir": lambda sc, m: run_case("1 m CFRP plate (pencil at the centre, MFCs 10 / 25 cm along 0 and 90 deg)", two_dir, large, 3, sc, m),
@@ -190,14 +199,18 @@ def main(argv) -> None:
         "two_dir_s0": lambda sc, m: run_case("1 m CFRP plate (24 pencil breaks at (0.35, 0.35), MFCs 20 / 40 cm "
                                              "along 0 and 90 deg)", two_dir_s0, large, 24, sc, m),
         "sweep_far": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz at (0.35, 0.35), 2 shots each, MFCs "
-                                            "20 / 40 cm along 0 / 90 deg)", sweep_far, large, 10, sc, m),
+                                            "20 / 40 cm along 0 / 90 deg)", sweep_far, large, 10, sc, m, seed=seed),
         # session 26: the sweep's wrong S0 points along 0 deg traced: bias (they stay without noise)
         # or noise (they shrink with 6 shots per burst instead of 2)
         "sweep_far_quiet": lambda sc, m: run_case("the sweep_far rig with 0.1 uV noise (was 1 mV)", sweep_far_quiet,
                                                   large, 10, sc, m),
         "edge_quiet": lambda sc, m: run_case("the edge-0 rig with 0.1 uV noise (was 0.2 mV), 12 breaks", edge_quiet, large,
                                              12, sc, m, EDGE_BAND),
-        "sweep_far_30": lambda sc, m: run_case("the sweep_far rig, 6 shots per burst (30)", sweep_far, large, 30, sc, m),
+        "sweep_far_30": lambda sc, m: run_case("the sweep_far rig, 6 shots per burst (30)", sweep_far, large, 30, sc, m,
+                                               seed=seed),
+        # session 28: 16 shots per burst, the count a lab averages on its scope (stacked in groups)
+        "sweep_far_80": lambda sc, m: run_case("the sweep_far rig, 16 shots per burst (80)", sweep_far, large, 80, sc, m,
+                                               seed=seed),
         # session 25: S0 from leads broken on the plate's edge (an in-plane force), one rig per
         # direction (the force along the sensors' line); A0 from the face breaks of two_dir_s0
         "edge": lambda sc, m: [run_case(f"1 m CFRP plate ({n} pencil breaks on the edge, force along {d} deg, MFCs "

@@ -99,8 +99,8 @@ def run_resolution(freqs_hz) -> float | None:
     return float(np.min(np.diff(f) / f[1:]))
 
 
-def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_tol: float = 0.01
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_tol: float = 0.01,
+               runs_out: list | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One dispersion curve from the independent points of several runs (e.g. tone bursts at
     different centre frequencies): ``curves`` are (frequency, velocity, sigma) arrays.
 
@@ -114,7 +114,8 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
     curve through all points (two runs that disagree say so; the curve's own dispersion
     between their frequencies is not a disagreement). Points off the smooth curve through the
     others (``off_curve``) are left out. Returns (frequency, velocity, sigma, number of runs
-    combined in each point), by frequency."""
+    combined in each point), by frequency; ``runs_out``, when given, receives each returned
+    point's run indices (a list per point)."""
     pts = sorted((float(f), float(v), float(s), r) for r, (F, V, S) in enumerate(curves)
                  for f, v, s in zip(F, V, S) if np.isfinite(v) and np.isfinite(s) and s > 0)
     if not pts:
@@ -125,7 +126,7 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
     res = [x if x is not None else (float(np.median(known)) if known else rel_tol) for x in res]
     P = np.array([p[:3] for p in pts])
     slope = _slope(P[:, 0], P[:, 1], P[:, 2])
-    out_f, out_v, out_s, out_n = [], [], [], []
+    out_f, out_v, out_s, out_n, out_r = [], [], [], [], []
     i = 0
     while i < len(pts):
         grp, runs = [pts[i]], {pts[i][3]}
@@ -148,9 +149,12 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
         out_v.append(v)
         out_s.append(s)
         out_n.append(len(grp))
+        out_r.append(sorted(runs))
         i = j
     F, V, S, N = np.array(out_f), np.array(out_v), np.array(out_s), np.array(out_n, int)
     bad = off_curve(F, V, S)
+    if runs_out is not None:
+        runs_out.extend(r for r, b in zip(out_r, bad) if not b)
     return F[~bad], V[~bad], S[~bad], N[~bad]
 
 

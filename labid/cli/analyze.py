@@ -112,6 +112,8 @@ def run(args) -> dict:
             note = note.split(": ", 1)[1] if note.startswith("after identification") else note
             if note.startswith("no velocity") or "not reported" in note:
                 w.write("dropped: " + note + "\n")
+            if note.startswith("more shots"):
+                w.write(note + "\n")
         if args.without_s0:
             w.write("S0: kept out of the features (--without-s0); stored in the run file only\n")
         w.write(f"features: {out_path} ({len(fr)} resonances, {n_w} group-velocity points)\n")

@@ -35,6 +35,7 @@ from engine.wavefeatures import merge as waves_merge
 from engine.wavefeatures import pipeline as waves_pipeline
 from engine.safe import ply_stiffness
 from engine.wavefeatures.pipeline import WaveSettings, default_wavelet
+from engine.wavefeatures.shots import more_shots_note
 from engine.wavefeatures.predict import SourceModel
 
 from ..base import atomic
@@ -233,7 +234,11 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
     notes = notes if notes is not None else []
     groups = _sweep_groups(records, rig)
     if len(groups) == 1:
-        return _wave_features_one(records, rig, specimen, settings, notes)
+        out = _wave_features_one(records, rig, specimen, settings, notes)
+        notes.extend(h for w in out[0] if (h := more_shots_note(f"{w['mode']} along {w['direction_deg']:g} deg", [
+            (f, s / v, len(records), [])
+            for f, v, s in zip(w["frequency_hz"], w["group_velocity_m_s"], w["sigma_m_s"])])))
+        return out
     src = rig.wave_source
     parts = []
     for f, recs in groups:
@@ -242,18 +247,19 @@ def wave_features(records: Sequence[Record], rig: Rig, specimen: Specimen,
         sub: list[str] = []
         parts.append((f, _wave_features_one(recs, rig_f, specimen, settings, sub)))
         notes.extend(f"burst {f / 1e3:.4g} kHz: {n}" if f else n for n in sub)
-    return _merge_sweep(parts, notes)
+    return _merge_sweep(parts, notes, {f: len(recs) for f, recs in groups})
 
 
-def _merge_sweep(parts, notes: list[str]):
-    """The curves of the sweep's bursts merged per mode and direction (``wave_features``)."""
+def _merge_sweep(parts, notes: list[str], shots: dict | None = None):
+    """The curves of the sweep's bursts merged per mode and direction (``wave_features``);
+    ``shots``: the shots per burst, for the note on points whose sigma exceeds 1 %."""
     by_key: dict = {}
     curves, arrivals, extra, dropped, mismatch = {}, {}, {}, {}, {}
     lo, hi = np.inf, -np.inf
     for f, (feats, cv, arr, ex, info) in parts:
         tag = f"_{f / 1e3:.4g}kHz" if f else ""
         for w in feats:
-            by_key.setdefault((w["mode"], w["direction_deg"]), []).append(w)
+            by_key.setdefault((w["mode"], w["direction_deg"]), []).append((f, w))
         for k, g in cv.items():
             best = curves.get(k)
             if best is None or g.valid.sum() > best.valid.sum():
@@ -272,9 +278,11 @@ def _merge_sweep(parts, notes: list[str]):
         if info.get("band_hz"):
             lo, hi = min(lo, info["band_hz"][0]), max(hi, info["band_hz"][1])
     out = []
-    for (mode, direction), ws in sorted(by_key.items()):
+    for (mode, direction), fws in sorted(by_key.items()):
+        bursts, ws = [f for f, _ in fws], [w for _, w in fws]
+        runs: list = []
         F, V, S, N = waves_merge.merge_runs([(np.array(w["frequency_hz"]), np.array(w["group_velocity_m_s"]),
-                                              np.array(w["sigma_m_s"])) for w in ws])
+                                              np.array(w["sigma_m_s"])) for w in ws], runs_out=runs)
         drop: dict = {}
         for w in ws:
             for r, n in w.get("dropped", {}).items():
@@ -287,6 +295,11 @@ def _merge_sweep(parts, notes: list[str]):
                      f"{F.min() / 1e3:.3g}-{F.max() / 1e3:.3g} kHz, each with its own sigma"
                      + (f"; {both} of them combine {int(N[N > 1].sum())} points of different bursts closer "
                         "than the bursts' frequency resolution" if both else ""))
+        hint = more_shots_note(f"{mode} along {direction:g} deg", [
+            (f, s / v, min((shots or {}).get(bursts[r], 0) for r in rr), [bursts[r] for r in rr])
+            for f, v, s, rr in zip(F, V, S, runs)])
+        if hint:
+            notes.append(hint)
     info = {"dropped": dropped, "mismatch": list(mismatch.values())}
     if np.isfinite(lo):
         info["band_hz"] = [float(lo), float(hi)]

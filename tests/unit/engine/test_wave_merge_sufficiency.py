@@ -41,8 +41,10 @@ def test_merge_runs_averages_coincident_points_and_keeps_their_disagreement():
     difference; the other points keep their own."""
     a = (np.array([100e3, 150e3]), np.array([1000.0, 1500.0]), np.array([3.0, 4.0]))
     b = (np.array([150e3, 200e3]), np.array([1510.0, 1600.0]), np.array([4.0, 5.0]))
-    f, v, s, n = merge.merge_runs([a, b])
+    runs: list = []
+    f, v, s, n = merge.merge_runs([a, b], runs_out=runs)
     assert list(f) == [100e3, 150e3, 200e3] and list(n) == [1, 2, 1]
+    assert runs == [[0], [0, 1], [1]]                                       # which bursts made each point
     assert v[1] == pytest.approx(1505.0) and s[1] == pytest.approx(5.0)      # max(4/sqrt2, 10/2)
     assert (v[0], s[0], v[2], s[2]) == (1000.0, 3.0, 1600.0, 5.0)
 
