@@ -15,12 +15,15 @@ sigma, the rms of the z-scores (error / reported sigma), the noise-free errors (
 0.1 uV as bench_unknown_plate's *_quiet cases; 'clean': also a 24-bit ADC), and per seed how many
 points are within 1 %.
 
-Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [sweep|edge] [quiet|clean] [SEEDS...]
-     .venv/bin/python bench/bench_wave_seeds.py table
+Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [sweep|edge] [quiet|clean] [fmax=HZ] [SEEDS...]
+     .venv/bin/python bench/bench_wave_seeds.py table [sweep|edge|edgef600 ...]
+     OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py shots BURST_HZ SEED [N] [WAVELET]
+(fmax=HZ: the rig's [simulation] wave_fmax_hz replaced; the runs' files are then <case>f<kHz>_*)
 """
 from __future__ import annotations
 
 import json
+import re
 import os
 import sys
 import time
@@ -44,7 +47,7 @@ SWEEP = "cfrp_pzt_sweep_2dir_far.toml"
 EDGE = "cfrp_pencil_edge_0.toml"
 
 
-def _rig(name: str, variant: str):
+def _rig(name: str, variant: str, fmax: float | None = None):
     """The rig file; 'quiet': noise 0.1 uV (bench_unknown_plate's *_quiet); 'clean': also a 24-bit
     ADC (the sweep's 12 bits over +-2 V step by 0.98 mV against its 4-7 mV S0 at 40 cm: without
     noise to dither it the rounding is a deterministic distortion, not a bias of the pick)."""
@@ -53,6 +56,8 @@ def _rig(name: str, variant: str):
         text = text.replace("noise_v = 1.0e-3", "noise_v = 1.0e-7").replace("noise_v = 2.0e-4", "noise_v = 1.0e-7")
     if variant == "clean":
         text = text.replace("adc_bits = 12", "adc_bits = 24").replace("adc_bits = 16", "adc_bits = 24")
+    if fmax:     # the simulator's band (its records' spectrum is tapered to 0 over its top 10 %)
+        text = re.sub(r"wave_fmax_hz = [0-9.e+]+", f"wave_fmax_hz = {fmax:.6g}", text)
     return rig_from_text(text, f"bench/rigs/{name}" + ("" if variant == "noisy" else f" ({variant})"))
 
 
@@ -60,11 +65,11 @@ def _rig(name: str, variant: str):
 CASES = {"sweep": (SWEEP, 10, 1 / 0.6, AnalysisSettings()), "edge": (EDGE, 36, 1 / 1.4, EDGE_BAND)}
 
 
-def measure(case: str, seed: int, variant: str) -> dict:
+def measure(case: str, seed: int, variant: str, fmax: float | None = None) -> dict:
     """One run: the independent records of the true plate analysed with the file as nominal."""
     name, n, scale, settings = CASES[case]
     spec = load_specimen(str(HERE / "rigs" / "cfrp_large.toml"))
-    rig = _rig(name, variant)
+    rig = _rig(name, variant, fmax)
     rig = replace(rig, sim=replace(rig.sim, truth_scale=(("*", scale),)))
     true_lam = truth_laminate(spec.laminate, rig.sim.truth_scale)
     c0, t0 = time.process_time(), time.perf_counter()
@@ -97,23 +102,23 @@ def measure(case: str, seed: int, variant: str) -> dict:
     for b in bursts:
         f = np.array(b["frequency_hz"])
         b["ref"] = list(map(float, reference(true_lam, b["direction_deg"], f)[b["mode"]])) if f.size else []
-    return {"case": case, "seed": seed, "variant": variant, "quiet": variant != "noisy", "shots": n, "file_off": 1 / scale - 1,
+    return {"case": case, "seed": seed, "variant": variant, "fmax": fmax, "quiet": variant != "noisy", "shots": n, "file_off": 1 / scale - 1,
             "cpu_s": time.process_time() - c0, "wall_s": time.perf_counter() - t0,
             "load": os.getloadavg()[0], "utc": time.strftime("%H:%M", time.gmtime()),
             "points": points, "bursts": bursts}
 
 
-def _tag(case, seed, variant):
-    return f"{case}_{seed if variant == 'noisy' else variant}"
+def _tag(case, seed, variant, fmax=None):
+    return (f"{case}" + (f"f{fmax / 1e3:.0f}" if fmax else "") + f"_{seed if variant == 'noisy' else variant}")
 
 
-def run(case: str, seed: int, variant: str) -> None:
+def run(case: str, seed: int, variant: str, fmax: float | None = None) -> None:
     OUT.mkdir(parents=True, exist_ok=True)
-    tag = _tag(case, seed, variant)
+    tag = _tag(case, seed, variant, fmax)
     if (OUT / f"{tag}.json").exists():
         print(f"{tag}: on disk, skipped", flush=True)
         return
-    r = measure(case, seed, variant)
+    r = measure(case, seed, variant, fmax)
     lines = [f"# {tag}: {r['shots']} shots, file {100 * r['file_off']:+.0f} %, {r['cpu_s']:.1f} s CPU, "
              f"{r['wall_s']:.1f} s wall, load {r['load']:.1f} at {r['utc']} UTC",
              "# mode dir_deg f_kHz v_m_s ref_m_s err_% sigma_% z"]
@@ -137,7 +142,7 @@ def _curves(points):
 
 def table(case: str) -> list[str]:
     """The seeds' points of ``case`` per curve and frequency region (markdown rows)."""
-    runs = [json.loads(p.read_text()) for p in sorted(OUT.glob(f"{case}_*.json"))]
+    runs = [json.loads(p.read_text()) for p in sorted(OUT.glob(f"{case}_*.json"))]   # case: e.g. 'edgef600'
     for r in runs:
         r.setdefault("variant", "quiet" if r["quiet"] else "noisy")
     ref = {r["variant"]: r for r in runs if r["variant"] != "noisy"}
@@ -204,18 +209,80 @@ def table(case: str) -> list[str]:
     return out
 
 
+def shots(fb: float, seed: int, n: int = 12, wl_name: str = "all") -> None:
+    """Per-shot S0 0 deg picks of ONE burst of the sweep rig (file -40 %; the rig with that burst
+    alone, so only its records are synthesised): per analysis frequency of each wavelet measured
+    on all shots, the shots' mean delay error against the true plate (0.4 m / legendre_safe's
+    group velocity), its standard error, the shots' scatter, the mean sigma a shot reports and
+    their ratio, the median far SNR and instantaneous frequency. The tracing follows
+    bench_sweep_shots.py (h51 / h53, session 27; copied, not imported: that file is another
+    engineer's); raw lines to OUT / shots_<kHz>_<seed>.txt."""
+    from engine.wavefeatures import pipeline   # noqa: PLC0415 - this subcommand only
+    spec = load_specimen(str(HERE / "rigs" / "cfrp_large.toml"))
+    rig = _rig(SWEEP, "noisy")
+    rig = replace(rig, sim=replace(rig.sim, truth_scale=(("*", 1 / 0.6),)),
+                  wave_source=replace(rig.wave_source, burst=rig.wave_source.burst.at(fb)))
+    true = truth_laminate(spec.laminate, rig.sim.truth_scale)
+    c0 = time.process_time()
+    recs = records(rig, spec, n, seed, "independent")
+    log: dict = {}
+    orig = pipeline._velocity
+
+    def traced(d, mode, wl, rec, cache):
+        g, out = orig(d, mode, wl, rec, cache)
+        if mode == "S0" and d.direction == 0.0 and d.strict and wl_name in (wl.name, "all"):
+            far, src = out["far"], out["source"]
+            log[(wl.name, id(rec))] = (far.times_s - src.times_s, np.hypot(far.sigma_s, src.sigma_s),
+                                       far.valid & src.valid, d.freqs.copy(), far.snr_db, far.inst_freq_hz)
+        return g, out
+    pipeline._velocity = traced
+    try:
+        feats = analysis._wave_features_one(recs, rig, spec, AnalysisSettings(), [])[0]
+    finally:
+        pipeline._velocity = orig
+    lines = [f"# burst {fb / 1e3:g} kHz, seed {seed}, {n} shots, {time.process_time() - c0:.1f} s CPU, "
+             f"load {os.getloadavg()[0]:.1f} at {time.strftime('%H:%M', time.gmtime())} UTC"]
+    for w in (w for w in feats if w["mode"] == "S0" and w["direction_deg"] == 0.0):
+        f, v, sg = (np.array(w[k]) for k in ("frequency_hz", "group_velocity_m_s", "sigma_m_s"))
+        ref = reference(true, 0.0, f)["S0"]
+        lines.append("points: " + ", ".join(f"{a / 1e3:.1f} kHz {100 * (b / r - 1):+.2f} % (sigma {100 * e / r:.2f} %)"
+                                            for a, b, e, r in zip(f, v, sg, ref)))
+    for name in sorted({k[0] for k in log}):
+        ent = [x for k, x in log.items() if k[0] == name]
+        D, S, V, F, SNR, FI = (np.array([x[k] for x in ent]) for k in range(6))
+        F = F[0]
+        exp = 0.4 / reference(true, 0.0, F)["S0"]
+        lines.append(f"{name}, {D.shape[0]} shots: f kHz | n | mean delay err us (s.e.) | % of the delay | scatter us"
+                     " | mean sigma us | scatter / sigma | far SNR dB | finst kHz")
+        for i in np.flatnonzero(V.sum(axis=0) >= max(3, n // 2)):
+            m = V[:, i]
+            dd = D[m, i] - exp[i]
+            sc = dd.std(ddof=1)
+            lines.append(f"  {F[i] / 1e3:6.1f} | {m.sum():2d} | {1e6 * dd.mean():+6.3f} ({1e6 * sc / np.sqrt(m.sum()):.3f}) | "
+                         f"{-100 * dd.mean() / exp[i]:+.2f} | {1e6 * sc:5.3f} | {1e6 * S[m, i].mean():5.3f} | "
+                         f"{sc / S[m, i].mean():4.2f} | {np.median(SNR[m, i]):.1f} | {np.median(FI[m, i]) / 1e3:.1f}")
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / f"shots_{fb / 1e3:.0f}_{seed}.txt").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines), flush=True)
+
+
 def main(argv) -> None:
+    if argv and argv[0] == "shots":      # shots BURST_HZ SEED [N] [WAVELET]
+        shots(float(argv[1]), int(argv[2]), int(argv[3]) if len(argv) > 3 else 12,
+              argv[4] if len(argv) > 4 else "all")
+        return
     if argv and argv[0] == "table":
-        for case in [a for a in argv[1:] if a in CASES] or list(CASES):
+        for case in argv[1:] or list(CASES):
             print("\n".join(table(case)) + "\n")
         return
     print(f"machine: {machine()}", flush=True)
     cases = [a for a in argv if a in CASES] or list(CASES)
     variant = next((a for a in argv if a in ("quiet", "clean")), "noisy")
     seeds = [int(a) for a in argv if a.isdigit()] or list(range(5))
+    fmax = next((float(a[5:]) for a in argv if a.startswith("fmax=")), None)
     for seed in (seeds if variant == "noisy" else [0]):
         for case in cases:
-            run(case, seed, variant)
+            run(case, seed, variant, fmax)
 
 
 if __name__ == "__main__":
