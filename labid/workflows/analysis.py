@@ -257,7 +257,7 @@ def _merge_sweep(parts, notes: list[str], shots: dict | None = None):
     curves, arrivals, extra, dropped, mismatch = {}, {}, {}, {}, {}
     lo, hi = np.inf, -np.inf
     odd = waves_sweep.odd_bursts(waves_sweep.survey_ratios(notes, [f for f, _ in parts]))   # one plate: bursts agree
-    notes.extend(waves_sweep.odd_note(k, v) for k, v in odd.items())
+    notes.extend(waves_sweep.odd_note(k, v, parts) for k, v in odd.items())
     for f, (feats, cv, arr, ex, info) in parts:
         tag = f"_{f / 1e3:.4g}kHz" if f else ""
         for w in (w for w in feats if (f, w["mode"], w["direction_deg"]) not in odd):

@@ -34,8 +34,11 @@ def test_no_reference_without_two_agreeing_others():
     """One other burst, or others that disagree among themselves: nothing is judged."""
     assert not sweep.odd_bursts({(60e3, "S0", 0.0): 0.54, (100e3, "S0", 0.0): 1.29})
     assert not sweep.odd_bursts({(60e3, "S0", 0.0): 0.54, (100e3, "S0", 0.0): 1.29, (150e3, "S0", 0.0): 0.9})
-    # a real plate's drift (A0: +-8 % over the sweep) is not flagged
-    assert not sweep.odd_bursts({(f, "A0", 90.0): r for f, r in zip(RATIOS, (1.2, 1.25, 1.28, 1.3, 1.32))})
+    # a real plate's drift (A0 along 90 deg on the sweep rig: 1.20 .. 1.31 x) is not flagged; seed 0's
+    # 60 kHz S0 survey at 1.59 x (the others 1.29-1.32 x) is
+    assert not sweep.odd_bursts({(f, "A0", 90.0): r for f, r in zip(RATIOS, (1.196, 1.229, 1.311, 1.283, 1.288))})
+    assert list(sweep.odd_bursts({(f, "S0", 0.0): r for f, r in zip(RATIOS, (1.59, 1.316, 1.285, 1.298, 1.294))})) \
+        == [(60e3, "S0", 0.0)]
 
 
 def _part(f, curves, mismatch=()):
@@ -59,6 +62,8 @@ def test_merged_sweep_leaves_out_the_odd_bursts_points_and_says_so():
     assert min(s0["frequency_hz"]) > 85e3 and np.allclose(s0["group_velocity_m_s"], 9000.0)
     assert any(n.startswith("burst 60 kHz: S0 along 0 deg at 0.54 x the nominal") for n in notes)
     assert [m["velocity_ratio"] for m in info["mismatch"]] == [1.287]     # not the echo's 0.541
+    line = sweep.odd_note((60e3, "S0", 0.0), (0.541, (1.29, 1.3)), parts[1:])
+    assert line.endswith("it gave no points; its ratio is not the sweep's")
 
 
 def test_left_out_drops_a_gross_end_point_and_keeps_real_dispersion():
