@@ -19,10 +19,11 @@ import numpy as np
 
 from .. import waves
 
-__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "run_resolution", "off_curve", "scattered", "odd_one",
-           "names"]
+__all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "run_resolution", "off_curve", "left_out",
+           "scattered", "odd_one", "names"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
+LOO_SIGMAS, LOO_REL = 6.0, 0.20   # left_out: a point this many sigmas AND this far (relative) off the others' curve
 
 
 def by_length(cands: Sequence[waves.Wavelet]) -> list[waves.Wavelet]:
@@ -100,7 +101,7 @@ def run_resolution(freqs_hz) -> float | None:
 
 
 def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_tol: float = 0.01,
-               runs_out: list | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+               runs_out: list | None = None, dropped_out: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One dispersion curve from the independent points of several runs (e.g. tone bursts at
     different centre frequencies): ``curves`` are (frequency, velocity, sigma) arrays.
 
@@ -115,7 +116,8 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
     between their frequencies is not a disagreement). Points off the smooth curve through the
     others (``off_curve``) are left out. Returns (frequency, velocity, sigma, number of runs
     combined in each point), by frequency; ``runs_out``, when given, receives each returned
-    point's run indices (a list per point)."""
+    point's run indices (a list per point); ``dropped_out``, when given, counts the points left
+    out under "off the smooth curve"."""
     pts = sorted((float(f), float(v), float(s), r) for r, (F, V, S) in enumerate(curves)
                  for f, v, s in zip(F, V, S) if np.isfinite(v) and np.isfinite(s) and s > 0)
     if not pts:
@@ -153,6 +155,8 @@ def merge_runs(curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], rel_
         i = j
     F, V, S, N = np.array(out_f), np.array(out_v), np.array(out_s), np.array(out_n, int)
     bad = off_curve(F, V, S)
+    if dropped_out is not None and bad.any():
+        dropped_out["off the smooth curve"] = dropped_out.get("off the smooth curve", 0) + int(bad.sum())
     if runs_out is not None:
         runs_out.extend(r for r, b in zip(out_r, bad) if not b)
     return F[~bad], V[~bad], S[~bad], N[~bad]
@@ -181,10 +185,11 @@ def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e
     echo, or on another ridge where one wavelet of the merge locked). A point's own sigma does
     not excuse it: the bench's wrong-ridge points (bench/RESULTS.md, issue 24, session 24) came
     with sigmas of 0.6-3.9 %, 1-4 sigma from the truth, while the curve through the others
-    scatters by 0.05-0.3 %. Fewer than degree + 4 points: nothing is flagged."""
+    scatters by 0.05-0.3 %. Fewer than degree + 4 points: only ``left_out``'s check (4 points on)."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     bad = np.zeros(f.size, bool)
     if f.size < degree + 4:
+        bad[:] = left_out(f, v, s)
         return bad
     x = np.log(f / f.max())
     tol = floor * float(np.median(np.abs(v)))
@@ -200,6 +205,42 @@ def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e
         if z[j] <= 1.0 or keep.sum() <= degree + 3:
             break
         bad[j] = True
+    bad[~bad] = left_out(f[~bad], v[~bad], s[~bad])
+    return bad
+
+
+def left_out(f_hz, v, sigma, k: float = LOO_SIGMAS, rel: float = LOO_REL) -> np.ndarray:
+    """Mask of points far off the smooth curve through all the others (a safety net for any
+    curve of 4 points or more, its end points included, which ``off_curve``'s fit through them
+    cannot judge): each point in turn is left out, a polynomial in ln f of degree
+    min(2, others - 2) is fitted to the others (weights 1/sigma) and evaluated at it; the
+    point is off when its residual exceeds ``k`` x sqrt(its sigma^2 + the others' median
+    sigma^2 + the others' rms residual^2) AND ``rel`` x the velocity. The worst such point goes,
+    then the check is repeated on the rest while 4 remain. ``rel`` = 5 %: A0's sqrt(f) rise
+    extrapolated one point beyond a quadratic in ln f, or S0's knee, miss by < 2 % on an
+    independent-point grid; the gross mislabels seen are 20-60 % (issue 24, session 28: a
+    far-edge echo taken for S0, 58 % slow with a 0.7 % sigma, at a merged sweep's low end)."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    bad = np.zeros(f.size, bool)
+    while (~bad).sum() >= 4:
+        idx = np.flatnonzero(~bad)
+        x = np.log(f[idx] / f[idx].max())
+        w = 1.0 / np.maximum(s[idx], 1e-3 * np.abs(v[idx]))
+        worst, score = None, 1.0
+        for j in range(idx.size):
+            o = np.arange(idx.size) != j
+            deg = min(2, int(o.sum()) - 2)
+            c = np.polynomial.polynomial.polyfit(x[o], v[idx][o], deg, w=w[o])
+            res_o = v[idx][o] - np.polynomial.polynomial.polyval(x[o], c)
+            rms = float(np.sqrt(np.sum(res_o ** 2) / max(int(o.sum()) - deg - 1, 1)))
+            r = abs(v[idx][j] - float(np.polynomial.polynomial.polyval(x[j], c)))
+            u = float(np.sqrt(s[idx][j] ** 2 + np.median(s[idx][o]) ** 2 + rms ** 2))
+            sc = min(r / (k * u), r / (rel * abs(v[idx][j])))
+            if sc > score:
+                worst, score = idx[j], sc
+        if worst is None:
+            break
+        bad[worst] = True
     return bad
 
 

@@ -31,7 +31,7 @@ import numpy as np
 from drivers.protocol import Record
 from engine import modal, waves
 from engine.waves import pair
-from engine.wavefeatures import merge as waves_merge
+from engine.wavefeatures import merge as waves_merge, sweep as waves_sweep
 from engine.wavefeatures import pipeline as waves_pipeline
 from engine.safe import ply_stiffness
 from engine.wavefeatures.pipeline import WaveSettings, default_wavelet
@@ -256,9 +256,11 @@ def _merge_sweep(parts, notes: list[str], shots: dict | None = None):
     by_key: dict = {}
     curves, arrivals, extra, dropped, mismatch = {}, {}, {}, {}, {}
     lo, hi = np.inf, -np.inf
+    odd = waves_sweep.odd_bursts(waves_sweep.survey_ratios(notes, [f for f, _ in parts]))   # one plate: bursts agree
+    notes.extend(waves_sweep.odd_note(k, v, parts) for k, v in odd.items())
     for f, (feats, cv, arr, ex, info) in parts:
         tag = f"_{f / 1e3:.4g}kHz" if f else ""
-        for w in feats:
+        for w in (w for w in feats if (f, w["mode"], w["direction_deg"]) not in odd):
             by_key.setdefault((w["mode"], w["direction_deg"]), []).append((f, w))
         for k, g in cv.items():
             best = curves.get(k)
@@ -273,20 +275,19 @@ def _merge_sweep(parts, notes: list[str], shots: dict | None = None):
             tot = dropped.setdefault(k, {})
             for r, n in d.items():
                 tot[r] = tot.get(r, 0) + n
-        for m in info.get("mismatch", []):
+        for m in (m for m in info.get("mismatch", []) if (f, m["mode"], m["direction_deg"]) not in odd):
             mismatch.setdefault((m["mode"], m["direction_deg"]), m)
         if info.get("band_hz"):
             lo, hi = min(lo, info["band_hz"][0]), max(hi, info["band_hz"][1])
     out = []
     for (mode, direction), fws in sorted(by_key.items()):
         bursts, ws = [f for f, _ in fws], [w for _, w in fws]
-        runs: list = []
-        F, V, S, N = waves_merge.merge_runs([(np.array(w["frequency_hz"]), np.array(w["group_velocity_m_s"]),
-                                              np.array(w["sigma_m_s"])) for w in ws], runs_out=runs)
-        drop: dict = {}
+        runs, drop = [], {}
         for w in ws:
             for r, n in w.get("dropped", {}).items():
                 drop[r] = drop.get(r, 0) + n
+        F, V, S, N = waves_merge.merge_runs([(np.array(w["frequency_hz"]), np.array(w["group_velocity_m_s"]),
+                                              np.array(w["sigma_m_s"])) for w in ws], runs_out=runs, dropped_out=drop)
         out.append({"mode": mode, "direction_deg": float(direction), "frequency_hz": [float(x) for x in F],
                     "group_velocity_m_s": [float(x) for x in V], "sigma_m_s": [float(x) for x in S],
                     "dropped": drop})
