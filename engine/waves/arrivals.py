@@ -124,8 +124,13 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
         times[i] = t[k] + d / fs_hz
         peak[i] = np.exp(lb - 0.25 * (la - lc) * d)
         # instantaneous frequency: phase slope around the peak, interpolated at k + d
-        ph = np.unwrap(np.angle(W[i, k - 1:k + 2]))
-        fi = np.diff(ph) * fs_hz / (2 * np.pi)  # at k - 1/2 and k + 1/2
+        ph = np.angle(W[i, k - 1:k + 2])
+        dph = np.diff(ph)
+        if not (np.abs(dph) < np.pi).all():
+            # a jump of pi or more: np.unwrap's correction (without one, np.unwrap returns
+            # the phases unchanged and this skips its cost: 13 % of a sweep's analysis)
+            dph = np.diff(np.unwrap(ph))
+        fi = dph * fs_hz / (2 * np.pi)  # at k - 1/2 and k + 1/2
         finst[i] = fi[0] + (fi[1] - fi[0]) * (d + 0.5)
     snr = 20 * np.log10(np.maximum(peak, tiny) / np.maximum(noise, tiny))
     snr[~np.isfinite(noise)] = np.inf
