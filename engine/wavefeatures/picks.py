@@ -385,6 +385,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         p, rows, arr.times_s[rows] - onsets[rows] - s_delay[rows], ranges[id(p)][0][rows], ranges[id(p)][1][rows],
         onsets[rows] + c_src[rows] + p.delay_s[rows]) for p in pk if p is not target and p.model_w is not None}
     at = {int(i): j for j, i in enumerate(rows)}
+    peaks_t = target.model_w.max(axis=1) if target.model_w is not None else np.zeros(nf)   # per row, at once
     for i in range(nf):
         if reason[i]:
             valid[i], why[i] = False, reason[i]
@@ -408,7 +409,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         # distance arrive together: the levels and shifts add up (worst case)
         items = []
         onset = 0.5 * (lo_s[i] + hi_s[i]) - c_src[i]          # the onset on the record axis
-        peak_t = target.model_w[i].max() if target.model_w is not None else 0.0
+        peak_t = peaks_t[i]
         for p in pk:
             if p is target or not np.isfinite(p.delay_s[i]):
                 continue
