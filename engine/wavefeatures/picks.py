@@ -277,18 +277,18 @@ def _src_time(d: Direction, wl: waves.Wavelet, src_arr: waves.Arrivals | None) -
 
 def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: waves.Wavelet,
               src_arr: waves.Arrivals | None, W: np.ndarray | None = None,
-              path_m: float = 1.0, xtalk: np.ndarray | None = None) -> waves.Arrivals:
+              path_m: float = 1.0, xtalk: np.ndarray | None = None, A=None, noise=False) -> waves.Arrivals:
     """Arrivals of ``mode``'s direct packet at sensor ``s`` (None: the source record, no
     gate); ``path_m``: the measured path (the bias bound is relative to its travel time);
     ``xtalk``: the bound of the source's crosstalk in this record, on ``W``'s grid
-    (``crosstalk.bound_in``; None: no electrical source)."""
+    (``crosstalk.bound_in``; None: no electrical source); ``A``, ``noise``: |W| and ``noise_rms``, if known."""
     fs, pre, freqs = d.setup.fs_hz, d.setup.pretrigger, d.freqs
     W = waves.cwt(x, fs, freqs, wl) if W is None else W
-    noise = noise_rms(x, pre, fs, freqs, wl)
+    noise = noise_rms(x, pre, fs, freqs, wl) if noise is False else noise
     if s is None:
         # the source's own scalogram: its maximum is the source time at every frequency of
         # the band, wherever its instantaneous frequency lies (no leakage test)
-        return waves.arrival_times(W, fs, freqs, wl, t0_index=pre, noise_rms=noise,
+        return waves.arrival_times(W, fs, freqs, wl, t0_index=pre, noise_rms=noise, A=A,
                                    min_snr_db=d.settings.min_snr_db, min_rel_db=-60.0, max_freq_offset=np.inf)
     lo_s, hi_s = _src_time(d, wl, src_arr)
     lo_s = lo_s + sensor_delay(s, freqs)
@@ -301,7 +301,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
     if target is None:
         reason = ["mode not excited at this sensor"] * nf
         return _rejected(freqs, wl, reason)
-    A = np.abs(W)
+    A = np.abs(W) if A is None else A
     t = (np.arange(A.shape[1]) - pre) / fs
 
     ranges = {}
@@ -371,7 +371,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
             reason[i] = "within a wavelet length of the source time"
             continue
         gate_lo[i], gate_hi[i] = t[best] - 0.75 * sig, t[best] + 0.75 * sig
-    arr = waves.arrival_times(W, fs, freqs, wl, t0_index=pre, gate_s=(gate_lo, gate_hi), noise_rms=noise,
+    arr = waves.arrival_times(W, fs, freqs, wl, t0_index=pre, gate_s=(gate_lo, gate_hi), noise_rms=noise, A=A,
                               min_snr_db=d.settings.min_snr_db, first_fraction=0.999)
     valid = arr.valid.copy()
     why = list(arr.reason)
@@ -385,6 +385,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         p, rows, arr.times_s[rows] - onsets[rows] - s_delay[rows], ranges[id(p)][0][rows], ranges[id(p)][1][rows],
         onsets[rows] + c_src[rows] + p.delay_s[rows]) for p in pk if p is not target and p.model_w is not None}
     at = {int(i): j for j, i in enumerate(rows)}
+    peaks_t = target.model_w.max(axis=1) if target.model_w is not None else np.zeros(nf)   # per row, at once
     for i in range(nf):
         if reason[i]:
             valid[i], why[i] = False, reason[i]
@@ -408,7 +409,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         # distance arrive together: the levels and shifts add up (worst case)
         items = []
         onset = 0.5 * (lo_s[i] + hi_s[i]) - c_src[i]          # the onset on the record axis
-        peak_t = target.model_w[i].max() if target.model_w is not None else 0.0
+        peak_t = peaks_t[i]
         for p in pk:
             if p is target or not np.isfinite(p.delay_s[i]):
                 continue

@@ -143,15 +143,20 @@ def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.n
             cache[(ch, wl)] = waves.cwt(rec[ch], d.setup.fs_hz, d.freqs, wl)
         return cache[(ch, wl)]
 
+    def known(ch):       # |W| and the noise level, read by every pick in this record (issue 24, session 28)
+        if ("abs", ch, wl) not in cache:
+            cache[("abs", ch, wl)] = (np.abs(W(ch)), noise_rms(rec[ch], d.setup.pretrigger, d.setup.fs_hz, d.freqs, wl))
+        return dict(zip(("A", "noise"), cache[("abs", ch, wl)]))
+
     src = None
     if force is not None:
         if ("src", force, wl) not in cache:
-            cache[("src", force, wl)] = arrivals_of(d, rec[force], None, mode, wl, None, W(force))
+            cache[("src", force, wl)] = arrivals_of(d, rec[force], None, mode, wl, None, W(force), **known(force))
         src = cache[("src", force, wl)]
     out = {"source": src}
     path = far.distance_m - (near.distance_m if near is not None else 0.0)
     a_far = arrivals_of(d, rec[far.channel], far, mode, wl, src, W(far.channel), path, crosstalk.bound_in(
-        d, rec, far, wl, cache, W))
+        d, rec, far, wl, cache, W), **known(far.channel))
     # the curvature correction needs a dispersive mode: fitted to S0's nearly constant
     # delays its tau'' is noise (docs/wavelet-bias.md); S0 is reassigned only
     correct = d.settings.assign == "instantaneous" and mode == "A0"
@@ -162,7 +167,7 @@ def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.n
         g = waves.group_velocity(a_far, far.distance_m, src, assign=assign)
     elif near is not None:
         a_near = arrivals_of(d, rec[near.channel], near, mode, wl, None, W(near.channel), path,
-                             crosstalk.bound_in(d, rec, near, wl, cache, W))
+                             crosstalk.bound_in(d, rec, near, wl, cache, W), **known(near.channel))
         if correct:
             a_near = waves.correct_dispersion_bias(a_near)
         out["near"] = a_near

@@ -370,3 +370,17 @@ def test_noise_sigma_follows_a_packet_longer_than_the_wavelet():
         ss.append(a.sigma_s[0])
     ratio = np.std(tt) / np.sqrt(np.mean(np.square(ss)))
     assert 0.7 < ratio < 1.4
+
+
+def test_instantaneous_frequency_across_phase_wraps():
+    # a Gaussian packet at 0.05-0.45 fs: the phase turns 0.1-0.9 pi per sample, so the three samples
+    # around each pick straddle the +-pi cut at random places; the phase slope must still give the
+    # packet's own frequency (the unwrap is skipped only where no step reaches pi)
+    n, fs = 2000, FS
+    t = (np.arange(n) - 1000) / fs
+    f0 = fs * np.array([0.05, 0.17, 0.29, 0.333, 0.41, 0.45, 0.4999])
+    W = np.exp(-0.5 * (t / 40e-6) ** 2)[None, :] * np.exp(2j * np.pi * f0[:, None] * (t + 0.37e-6))
+    arr = waves.arrival_times(W.astype(np.complex64), fs, f0, waves.Wavelet(2.0, 1.0), t0_index=1000,
+                              min_rel_db=-300.0)
+    np.testing.assert_allclose(arr.inst_freq_hz, f0, rtol=1e-5)
+    np.testing.assert_allclose(arr.times_s, 0.0, atol=1e-9)
