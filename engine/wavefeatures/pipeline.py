@@ -93,7 +93,9 @@ class WaveResult:
     measured curve on the full grid and the first shot's far-sensor arrivals, by key
     '<mode>_<direction>' (e.g. 'A0_0'). wave_path_m / sensor_length_m: path and sensor
     length of the first direction (None without one). dropped: per key, why frequencies
-    were dropped ({reason: count}). notes: what was done, in order.
+    were dropped ({reason: count}). notes: what was done, in order. mismatch: where the data
+    contradict the nominal (mode, direction_deg, velocity_ratio, message). survey: every mode the
+    survey found, {mode, direction_deg, velocity_ratio (measured / nominal group velocity)}.
     """
 
     features: tuple[WaveCurve, ...]
@@ -104,6 +106,7 @@ class WaveResult:
     notes: tuple[str, ...]
     dropped: Mapping[str, Mapping[str, int]] = field(default_factory=dict)
     mismatch: tuple[dict, ...] = ()
+    survey: tuple[dict, ...] = ()
 
 
 def _apply_survey(d: Direction, shots, settings: WaveSettings, onsets=None):
@@ -377,7 +380,7 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
     by_dir: dict[float, list] = {}
     for ws in sensors:
         by_dir.setdefault(round(ws.direction_deg, 6), []).append(ws)
-    out, curves, arrivals, dropped, mismatch = [], {}, {}, {}, []
+    out, curves, arrivals, dropped, mismatch, surveyed = [], {}, {}, {}, [], []
     path_m = length_m = None
     # stage 0: one source, one onset per shot, voted for by every direction's sensor pairs
     onsets = survey_onsets([direction_of(setup, settings, freqs, dd, w) for dd, w in sorted(by_dir.items())],
@@ -396,6 +399,7 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
         for m, (r, line) in sv.mismatch.items():
             notes.append(line)
             mismatch.append({"mode": m, "direction_deg": float(direction), "velocity_ratio": r, "message": line})
+        surveyed += [{"mode": m, "direction_deg": float(direction), "velocity_ratio": float(r)} for m, r in sv.ratio.items()]
         d.record_s = (n_rec - setup.pretrigger) / setup.fs_hz - (d.t0_prior[0] if d.t0_prior else 0.0)
         first = _first_shot(d, settings, shots)
         used = merge.plan(first) if None not in first.values() else list(first)
@@ -455,4 +459,5 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             far, near = d.pair("A0") if d.pair("A0")[0] is not None else d.pair("S0")
             path_m = far.distance_m - (near.distance_m if near is not None else 0.0)
             length_m = far.length_m
-    return WaveResult(tuple(out), curves, arrivals, path_m, length_m, tuple(notes), dropped, tuple(mismatch))
+    return WaveResult(tuple(out), curves, arrivals, path_m, length_m, tuple(notes), dropped, tuple(mismatch),
+                      tuple(surveyed))

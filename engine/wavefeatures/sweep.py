@@ -12,15 +12,13 @@ four bursts said 1.29-1.34 x); its picks then gave a point 58 % slow with a 0.7 
 its mismatch line ("S0 arrives 85 % later") is not the sweep's either. That burst's curve of
 that mode and direction is not merged, its mismatch line is not used, and a note says so.
 
-The ratios are read from the survey's per-burst notes ("direction D deg: M found in the
-records at ..., R x the nominal group velocity") that ``labid.workflows.analysis`` prefixes
-with "burst F kHz: ". Pure: strings and dicts in. Units: Hz.
+The ratios are the surveys' own (``WaveResult.survey``, carried per burst in the info of
+``labid.workflows.analysis._wave_features_one``). Pure: dicts in. Units: Hz.
 """
 from __future__ import annotations
 
 import math
-import re
-from typing import Iterable, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -34,20 +32,14 @@ __all__ = ["BOUND", "AGREE", "survey_ratios", "odd_bursts", "odd_note"]
 BOUND = 1.2
 #: the other bursts must agree among themselves within this factor (max / min) to be a reference
 AGREE = 1.15
-_NOTE = re.compile(r"^burst (\S+) kHz: direction (\S+) deg: (\w+) found in the records at \d+ of \d+ surveyed "
-                   r"frequencies \([^)]*\), ([0-9.]+) x the nominal group velocity")
 
 
-def survey_ratios(notes: Iterable[str], bursts: Sequence[float]) -> dict:
-    """{(burst Hz, mode, direction deg): measured / nominal ratio} from the sweep's notes; a
-    burst is matched by its label f"{f / 1e3:.4g}" (as ``wave_features`` writes it)."""
-    label = {f"{f / 1e3:.4g}": f for f in bursts if f}
-    out = {}
-    for ln in notes:
-        m = _NOTE.match(ln)
-        if m and m.group(1) in label:
-            out[(label[m.group(1)], m.group(3), float(m.group(2)))] = float(m.group(4))
-    return out
+def survey_ratios(parts: Sequence) -> dict:
+    """{(burst Hz, mode, direction deg): measured / nominal ratio} from the sweep's parts
+    [(burst Hz, (features, curves, arrivals, extra, info))], info["survey"] as
+    ``WaveResult.survey`` gives it."""
+    return {(f, s["mode"], float(s["direction_deg"])): float(s["velocity_ratio"])
+            for f, part in parts if f for s in part[4].get("survey", ())}
 
 
 def odd_bursts(ratios: Mapping[tuple, float], bound: float = BOUND, agree: float = AGREE) -> dict:

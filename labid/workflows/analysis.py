@@ -256,7 +256,7 @@ def _merge_sweep(parts, notes: list[str], shots: dict | None = None):
     by_key: dict = {}
     curves, arrivals, extra, dropped, mismatch = {}, {}, {}, {}, {}
     lo, hi = np.inf, -np.inf
-    odd = waves_sweep.odd_bursts(waves_sweep.survey_ratios(notes, [f for f, _ in parts]))   # one plate: bursts agree
+    odd = waves_sweep.odd_bursts(waves_sweep.survey_ratios(parts))   # one plate: the bursts agree
     notes.extend(waves_sweep.odd_note(k, v, parts) for k, v in odd.items())
     for f, (feats, cv, arr, ex, info) in parts:
         tag = f"_{f / 1e3:.4g}kHz" if f else ""
@@ -397,7 +397,7 @@ def _wave_features_one(records: Sequence[Record], rig: Rig, specimen: Specimen,
         extra["wave_path_m"] = res.wave_path_m
         extra["sensor_length_m"] = res.sensor_length_m
     info = {"band_hz": [float(freqs[0]), float(freqs[-1])], "dropped": {k: dict(v) for k, v in res.dropped.items()},
-            "mismatch": [dict(m) for m in res.mismatch]}
+            "mismatch": [dict(m) for m in res.mismatch], "survey": [dict(m) for m in res.survey]}
     return out, dict(res.curves), dict(res.arrivals), extra, info
 
 

@@ -11,17 +11,18 @@ from engine.wavefeatures import merge, sweep
 from labid.workflows.analysis import _merge_sweep
 
 
-def _survey(f, mode, d, r):
-    return (f"burst {f / 1e3:.4g} kHz: direction {d:g} deg: {mode} found in the records at 30 of 34 surveyed "
-            f"frequencies (40-300 kHz), {r:.3f} x the nominal group velocity, time origin from the onset")
+def _surveyed(f, ratios):
+    """One burst's part as ``_wave_features_one`` returns it, holding only its survey's ratios
+    ({(mode, direction): ratio}, as ``WaveResult.survey``)."""
+    info = {"survey": [{"mode": m, "direction_deg": d, "velocity_ratio": r} for (m, d), r in ratios.items()]}
+    return f, ([], {}, {}, {}, info)
 
 
 RATIOS = {60e3: 0.541, 100e3: 1.287, 150e3: 1.292, 200e3: 1.289, 250e3: 1.301}
 
 
 def test_the_burst_off_the_others_is_named_with_its_numbers():
-    notes = [_survey(f, "S0", 0, r) for f, r in RATIOS.items()] + [_survey(f, "A0", 0, 1.27) for f in RATIOS]
-    ratios = sweep.survey_ratios(notes, list(RATIOS))
+    ratios = sweep.survey_ratios([_surveyed(f, {("S0", 0.0): r, ("A0", 0.0): 1.27}) for f, r in RATIOS.items()])
     assert ratios[(60e3, "S0", 0.0)] == 0.541 and ratios[(250e3, "A0", 0.0)] == 1.27
     odd = sweep.odd_bursts(ratios)
     assert list(odd) == [(60e3, "S0", 0.0)]
@@ -41,22 +42,24 @@ def test_no_reference_without_two_agreeing_others():
         == [(60e3, "S0", 0.0)]
 
 
-def _part(f, curves, mismatch=()):
+def _part(f, curves, mismatch=(), ratios=()):
     feats = [{"mode": m, "direction_deg": d, "frequency_hz": list(F), "group_velocity_m_s": list(V),
               "sigma_m_s": list(0.005 * np.asarray(V)), "dropped": {}} for (m, d), (F, V) in curves.items()]
     info = {"band_hz": [f * 0.5, f * 1.5], "dropped": {},
             "mismatch": [{"mode": m, "direction_deg": d, "velocity_ratio": r, "message": f"{m} {r}"}
-                         for m, d, r in mismatch]}
+                         for m, d, r in mismatch],
+            "survey": [{"mode": m, "direction_deg": d, "velocity_ratio": r} for m, d, r in ratios]}
     return f, (feats, {}, {}, {}, info)
 
 
 def test_merged_sweep_leaves_out_the_odd_bursts_points_and_says_so():
     """The true S0 is 9000 m/s (flat); the 60 kHz burst's two points are the echo (3780 m/s)."""
-    parts = [_part(60e3, {("S0", 0.0): ([53e3, 66e3], [3780.0, 3790.0])}, [("S0", 0.0, 0.541)])]
+    parts = [_part(60e3, {("S0", 0.0): ([53e3, 66e3], [3780.0, 3790.0])}, [("S0", 0.0, 0.541)], [("S0", 0.0, 0.541)])]
     for f in (100e3, 150e3, 200e3, 250e3):
         F = f * np.array([0.9, 1.0, 1.1])
-        parts.append(_part(f, {("S0", 0.0): (F, np.full(3, 9000.0))}, [("S0", 0.0, RATIOS[f])]))
-    notes = [_survey(f, "S0", 0, r) for f, r in RATIOS.items()]
+        parts.append(_part(f, {("S0", 0.0): (F, np.full(3, 9000.0))}, [("S0", 0.0, RATIOS[f])],
+                           [("S0", 0.0, RATIOS[f])]))
+    notes: list[str] = []
     out, _, _, _, info = _merge_sweep(parts, notes)
     (s0,) = out
     assert min(s0["frequency_hz"]) > 85e3 and np.allclose(s0["group_velocity_m_s"], 9000.0)
