@@ -15,7 +15,10 @@ sigma, the rms of the z-scores (error / reported sigma), the noise-free errors (
 0.1 uV as bench_unknown_plate's *_quiet cases; 'clean': also a 24-bit ADC), and per seed how many
 points are within 1 %.
 
-Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [sweep|edge] [quiet|clean] [fmax=HZ] [SEEDS...]
+Cases: sweep, edge (+40 %), edgesoft (-40 %), edge90, edge90soft, edgelong, edgelongsoft (the 20 / 60 cm
+edge rig bench/rigs/cfrp_pencil_edge_0_long.toml, session 28).
+
+Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [CASE ...] [quiet|clean] [fmax=HZ] [SEEDS...]
      .venv/bin/python bench/bench_wave_seeds.py table [sweep|edge|edgef600 ...]
      OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py shots BURST_HZ SEED [N] [WAVELET]
 (fmax=HZ: the rig's [simulation] wave_fmax_hz replaced; the runs' files are then <case>f<kHz>_*)
@@ -45,6 +48,7 @@ from mock_hw.rig import truth_laminate  # noqa: E402
 OUT = Path(os.environ.get("H54_SEEDS", "/tmp/h54_seeds"))
 SWEEP = "cfrp_pzt_sweep_2dir_far.toml"
 EDGE = "cfrp_pencil_edge_0.toml"
+EDGE_LONG = "cfrp_pencil_edge_0_long.toml"    # MFCs 20 / 60 cm (session 28, h58)
 
 
 def _rig(name: str, variant: str, fmax: float | None = None):
@@ -66,7 +70,9 @@ CASES = {"sweep": (SWEEP, 10, 1 / 0.6, AnalysisSettings()), "edge": (EDGE, 36, 1
          # the other edge cases of bench_unknown_plate (already within 1 % on seed 0), to check a
          # change of the simulator's band on them
          "edgesoft": (EDGE, 36, 1 / 0.6, EDGE_BAND), "edge90": ("cfrp_pencil_edge_90.toml", 12, 1 / 1.4, EDGE_BAND),
-         "edge90soft": ("cfrp_pencil_edge_90.toml", 12, 1 / 0.6, EDGE_BAND)}
+         "edge90soft": ("cfrp_pencil_edge_90.toml", 12, 1 / 0.6, EDGE_BAND),
+         # the 20 / 60 cm baseline along 0 deg (names without '_': table() globs '<case>_*')
+         "edgelong": (EDGE_LONG, 36, 1 / 1.4, EDGE_BAND), "edgelongsoft": (EDGE_LONG, 36, 1 / 0.6, EDGE_BAND)}
 
 
 def measure(case: str, seed: int, variant: str, fmax: float | None = None) -> dict:
