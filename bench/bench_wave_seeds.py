@@ -16,7 +16,8 @@ sigma, the rms of the z-scores (error / reported sigma), the noise-free errors (
 points are within 1 %.
 
 Cases: sweep, edge (+40 %), edgesoft (-40 %), edge90, edge90soft, edgelong, edgelongsoft (the 20 / 60 cm
-edge rig bench/rigs/cfrp_pencil_edge_0_long.toml, session 28).
+edge rig bench/rigs/cfrp_pencil_edge_0_long.toml, session 28), edgegain, edgegainsoft (the
+20 / 40 cm rig with the long rig's 20 dB preamps).
 
 Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [CASE ...] [quiet|clean] [fmax=HZ] [SEEDS...]
      .venv/bin/python bench/bench_wave_seeds.py table [sweep|edge|edgef600 ...]
@@ -55,11 +56,14 @@ def _rig(name: str, variant: str, fmax: float | None = None):
     """The rig file; 'quiet': noise 0.1 uV (bench_unknown_plate's *_quiet); 'clean': also a 24-bit
     ADC (the sweep's 12 bits over +-2 V step by 0.98 mV against its 4-7 mV S0 at 40 cm: without
     noise to dither it the rounding is a deterministic distortion, not a bias of the pick)."""
-    text = (HERE / "rigs" / name).read_text()
+    text = (HERE / "rigs" / name.split("+")[0]).read_text()
     if variant in ("quiet", "clean"):
         text = text.replace("noise_v = 1.0e-3", "noise_v = 1.0e-7").replace("noise_v = 2.0e-4", "noise_v = 1.0e-7")
     if variant == "clean":
         text = text.replace("adc_bits = 12", "adc_bits = 24").replace("adc_bits = 16", "adc_bits = 24")
+    if "+gain20" in name:     # the 20 dB preamp of the 20 / 60 cm rig on another rig (an A/B of the baseline)
+        text = text.replace("volts_per_strain = 2.0e5", "volts_per_strain = 2.0e6").replace(
+            "level_v = -0.005", "level_v = -0.05")
     if fmax:     # the simulator's band (its records' spectrum is tapered to 0 over its top 10 %)
         text = re.sub(r"wave_fmax_hz = [0-9.e+]+", f"wave_fmax_hz = {fmax:.6g}", text)
     return rig_from_text(text, f"bench/rigs/{name}" + ("" if variant == "noisy" else f" ({variant})"))
@@ -72,7 +76,9 @@ CASES = {"sweep": (SWEEP, 10, 1 / 0.6, AnalysisSettings()), "edge": (EDGE, 36, 1
          "edgesoft": (EDGE, 36, 1 / 0.6, EDGE_BAND), "edge90": ("cfrp_pencil_edge_90.toml", 12, 1 / 1.4, EDGE_BAND),
          "edge90soft": ("cfrp_pencil_edge_90.toml", 12, 1 / 0.6, EDGE_BAND),
          # the 20 / 60 cm baseline along 0 deg (names without '_': table() globs '<case>_*')
-         "edgelong": (EDGE_LONG, 36, 1 / 1.4, EDGE_BAND), "edgelongsoft": (EDGE_LONG, 36, 1 / 0.6, EDGE_BAND)}
+         "edgelong": (EDGE_LONG, 36, 1 / 1.4, EDGE_BAND), "edgelongsoft": (EDGE_LONG, 36, 1 / 0.6, EDGE_BAND),
+         # the 20 / 40 cm rig with the long rig's 20 dB preamps: what the baseline alone buys
+         "edgegain": (EDGE + "+gain20", 36, 1 / 1.4, EDGE_BAND), "edgegainsoft": (EDGE + "+gain20", 36, 1 / 0.6, EDGE_BAND)}
 
 
 def measure(case: str, seed: int, variant: str, fmax: float | None = None) -> dict:
