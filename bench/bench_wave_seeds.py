@@ -21,6 +21,7 @@ edge rig bench/rigs/cfrp_pencil_edge_0_long.toml, session 28), edgegain, edgegai
 
 Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [CASE ...] [quiet|clean] [fmax=HZ] [SEEDS...]
      .venv/bin/python bench/bench_wave_seeds.py table [sweep|edge|edgef600 ...]
+     .venv/bin/python bench/bench_wave_seeds.py summary [CASE ...]   (one line per curve over the seeds)
      OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py shots BURST_HZ SEED [N] [WAVELET]
 (fmax=HZ: the rig's [simulation] wave_fmax_hz replaced; the runs' files are then <case>f<kHz>_*)
 """
@@ -225,6 +226,27 @@ def table(case: str) -> list[str]:
     return out
 
 
+def summary(case: str) -> str:
+    """One line per curve of ``case`` over its noisy seeds: points within 1 %, seeds with every
+    point within 1 %, the error range, the rms of the z-scores, the reported sigma's range."""
+    runs = sorted((json.loads(p.read_text()) for p in OUT.glob(f"{case}_*.json")), key=lambda r: r["seed"])
+    noisy = [r for r in runs if not r["quiet"]]
+    out = []
+    for k in sorted({k for r in noisy for k in _curves(r["points"])}):
+        per = [_curves(r["points"]).get(k, []) for r in noisy]
+        pts = [p for ps in per for p in ps]
+        e = np.array([p["err"] for p in pts]) * 100
+        z = np.array([p["z"] for p in pts])
+        s = np.array([p["sigma"] / p["ref"] for p in pts]) * 100
+        out.append(f"{case} {k[0]} {k[1]:g} deg, seeds {[r['seed'] for r in noisy]}: "
+                   f"{int(np.sum(np.abs(e) <= 1))} / {e.size} points within 1 %, "
+                   f"{sum(bool(ps) and all(abs(p['err']) <= 0.01 for p in ps) for ps in per)} / {len(per)} seeds all "
+                   f"within (points per seed {min(map(len, per))}-{max(map(len, per))}); err {e.min():+.2f} .. "
+                   f"{e.max():+.2f} %, z rms {np.sqrt(np.mean(z ** 2)):.2f}, sigma {s.min():.2f} .. {s.max():.2f} % "
+                   f"(median {np.median(s):.2f})" if e.size else f"{case} {k[0]} {k[1]:g}: no point")
+    return "\n".join(out) or f"{case}: no noisy run on disk"
+
+
 def shots(fb: float, seed: int, n: int = 12, wl_name: str = "all") -> None:
     """Per-shot S0 0 deg picks of ONE burst of the sweep rig (file -40 %; the rig with that burst
     alone, so only its records are synthesised): per analysis frequency of each wavelet measured
@@ -290,6 +312,10 @@ def main(argv) -> None:
     if argv and argv[0] == "shots":      # shots BURST_HZ SEED [N] [WAVELET]
         shots(float(argv[1]), int(argv[2]), int(argv[3]) if len(argv) > 3 else 12,
               argv[4] if len(argv) > 4 else "all")
+        return
+    if argv and argv[0] == "summary":
+        for case in argv[1:] or list(CASES):
+            print(summary(case))
         return
     if argv and argv[0] == "table":
         for case in argv[1:] or list(CASES):
