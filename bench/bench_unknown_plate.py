@@ -189,6 +189,8 @@ def main(argv) -> None:
         "noise_v = 2.0e-4", "noise_v = 1.0e-7"), "bench/rigs/cfrp_pencil_edge_0.toml (noise 0.1 uV)")
     edge = {d: rig_from_text((HERE / "rigs" / f"cfrp_pencil_edge_{d}.toml").read_text(),
                              f"bench/rigs/cfrp_pencil_edge_{d}.toml") for d in (0, 90)}
+    edge_long = rig_from_text((HERE / "rigs" / "cfrp_pencil_edge_0_long.toml").read_text(),
+                              "bench/rigs/cfrp_pencil_edge_0_long.toml")
     seed = next((int(a.split("=", 1)[1]) for a in argv if a.startswith("seed=")), 0)
     cases = {
         "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
@@ -214,8 +216,14 @@ def main(argv) -> None:
         # session 25: S0 from leads broken on the plate's edge (an in-plane force), one rig per
         # direction (the force along the sensors' line); A0 from the face breaks of two_dir_s0
         "edge": lambda sc, m: [run_case(f"1 m CFRP plate ({n} pencil breaks on the edge, force along {d} deg, MFCs "
-                                        f"20 / 40 cm along {d} deg)", edge[d], large, n, sc, m, EDGE_BAND)
+                                        f"20 / 40 cm along {d} deg)", edge[d], large, n, sc, m, EDGE_BAND,
+                                        seed=seed)
                               for d, n in ((0, 36), (90, 12))],
+        # session 28: S0 along 0 deg on a 20 / 60 cm baseline (the 20 / 40 cm one is noise-limited
+        # on a stiff plate: 22 us between the MFCs)
+        "edge_long": lambda sc, m: run_case("1 m CFRP plate (36 pencil breaks on the edge, force along 0 deg, MFCs "
+                                            "20 / 60 cm along 0 deg)", edge_long, large, 36, sc, m, EDGE_BAND,
+                                            seed=seed),
     }
     pick = [a for a in argv if a in cases] or list(cases)
     models = [a for a in argv if a in ("simulated", "independent")] or ["simulated"]

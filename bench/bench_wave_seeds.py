@@ -15,8 +15,13 @@ sigma, the rms of the z-scores (error / reported sigma), the noise-free errors (
 0.1 uV as bench_unknown_plate's *_quiet cases; 'clean': also a 24-bit ADC), and per seed how many
 points are within 1 %.
 
-Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [sweep|edge] [quiet|clean] [fmax=HZ] [SEEDS...]
+Cases: sweep, edge (+40 %), edgesoft (-40 %), edge90, edge90soft, edgelong, edgelongsoft (the 20 / 60 cm
+edge rig bench/rigs/cfrp_pencil_edge_0_long.toml, session 28), edgegain, edgegainsoft (the
+20 / 40 cm rig with the long rig's 20 dB preamps).
+
+Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [CASE ...] [quiet|clean] [fmax=HZ] [SEEDS...]
      .venv/bin/python bench/bench_wave_seeds.py table [sweep|edge|edgef600 ...]
+     .venv/bin/python bench/bench_wave_seeds.py summary [CASE ...]   (one line per curve over the seeds)
      OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py shots BURST_HZ SEED [N] [WAVELET]
 (fmax=HZ: the rig's [simulation] wave_fmax_hz replaced; the runs' files are then <case>f<kHz>_*)
 """
@@ -45,17 +50,21 @@ from mock_hw.rig import truth_laminate  # noqa: E402
 OUT = Path(os.environ.get("H54_SEEDS", "/tmp/h54_seeds"))
 SWEEP = "cfrp_pzt_sweep_2dir_far.toml"
 EDGE = "cfrp_pencil_edge_0.toml"
+EDGE_LONG = "cfrp_pencil_edge_0_long.toml"    # MFCs 20 / 60 cm (session 28, h58)
 
 
 def _rig(name: str, variant: str, fmax: float | None = None):
     """The rig file; 'quiet': noise 0.1 uV (bench_unknown_plate's *_quiet); 'clean': also a 24-bit
     ADC (the sweep's 12 bits over +-2 V step by 0.98 mV against its 4-7 mV S0 at 40 cm: without
     noise to dither it the rounding is a deterministic distortion, not a bias of the pick)."""
-    text = (HERE / "rigs" / name).read_text()
+    text = (HERE / "rigs" / name.split("+")[0]).read_text()
     if variant in ("quiet", "clean"):
         text = text.replace("noise_v = 1.0e-3", "noise_v = 1.0e-7").replace("noise_v = 2.0e-4", "noise_v = 1.0e-7")
     if variant == "clean":
         text = text.replace("adc_bits = 12", "adc_bits = 24").replace("adc_bits = 16", "adc_bits = 24")
+    if "+gain20" in name:     # the 20 dB preamp of the 20 / 60 cm rig on another rig (an A/B of the baseline)
+        text = text.replace("volts_per_strain = 2.0e5", "volts_per_strain = 2.0e6").replace(
+            "level_v = -0.005", "level_v = -0.05")
     if fmax:     # the simulator's band (its records' spectrum is tapered to 0 over its top 10 %)
         text = re.sub(r"wave_fmax_hz = [0-9.e+]+", f"wave_fmax_hz = {fmax:.6g}", text)
     return rig_from_text(text, f"bench/rigs/{name}" + ("" if variant == "noisy" else f" ({variant})"))
@@ -66,7 +75,11 @@ CASES = {"sweep": (SWEEP, 10, 1 / 0.6, AnalysisSettings()), "edge": (EDGE, 36, 1
          # the other edge cases of bench_unknown_plate (already within 1 % on seed 0), to check a
          # change of the simulator's band on them
          "edgesoft": (EDGE, 36, 1 / 0.6, EDGE_BAND), "edge90": ("cfrp_pencil_edge_90.toml", 12, 1 / 1.4, EDGE_BAND),
-         "edge90soft": ("cfrp_pencil_edge_90.toml", 12, 1 / 0.6, EDGE_BAND)}
+         "edge90soft": ("cfrp_pencil_edge_90.toml", 12, 1 / 0.6, EDGE_BAND),
+         # the 20 / 60 cm baseline along 0 deg (names without '_': table() globs '<case>_*')
+         "edgelong": (EDGE_LONG, 36, 1 / 1.4, EDGE_BAND), "edgelongsoft": (EDGE_LONG, 36, 1 / 0.6, EDGE_BAND),
+         # the 20 / 40 cm rig with the long rig's 20 dB preamps: what the baseline alone buys
+         "edgegain": (EDGE + "+gain20", 36, 1 / 1.4, EDGE_BAND), "edgegainsoft": (EDGE + "+gain20", 36, 1 / 0.6, EDGE_BAND)}
 
 
 def measure(case: str, seed: int, variant: str, fmax: float | None = None) -> dict:
@@ -213,6 +226,27 @@ def table(case: str) -> list[str]:
     return out
 
 
+def summary(case: str) -> str:
+    """One line per curve of ``case`` over its noisy seeds: points within 1 %, seeds with every
+    point within 1 %, the error range, the rms of the z-scores, the reported sigma's range."""
+    runs = sorted((json.loads(p.read_text()) for p in OUT.glob(f"{case}_*.json")), key=lambda r: r["seed"])
+    noisy = [r for r in runs if not r["quiet"]]
+    out = []
+    for k in sorted({k for r in noisy for k in _curves(r["points"])}):
+        per = [_curves(r["points"]).get(k, []) for r in noisy]
+        pts = [p for ps in per for p in ps]
+        e = np.array([p["err"] for p in pts]) * 100
+        z = np.array([p["z"] for p in pts])
+        s = np.array([p["sigma"] / p["ref"] for p in pts]) * 100
+        out.append(f"{case} {k[0]} {k[1]:g} deg, seeds {[r['seed'] for r in noisy]}: "
+                   f"{int(np.sum(np.abs(e) <= 1))} / {e.size} points within 1 %, "
+                   f"{sum(bool(ps) and all(abs(p['err']) <= 0.01 for p in ps) for ps in per)} / {len(per)} seeds all "
+                   f"within (points per seed {min(map(len, per))}-{max(map(len, per))}); err {e.min():+.2f} .. "
+                   f"{e.max():+.2f} %, z rms {np.sqrt(np.mean(z ** 2)):.2f}, sigma {s.min():.2f} .. {s.max():.2f} % "
+                   f"(median {np.median(s):.2f})" if e.size else f"{case} {k[0]} {k[1]:g}: no point")
+    return "\n".join(out) or f"{case}: no noisy run on disk"
+
+
 def shots(fb: float, seed: int, n: int = 12, wl_name: str = "all") -> None:
     """Per-shot S0 0 deg picks of ONE burst of the sweep rig (file -40 %; the rig with that burst
     alone, so only its records are synthesised): per analysis frequency of each wavelet measured
@@ -278,6 +312,10 @@ def main(argv) -> None:
     if argv and argv[0] == "shots":      # shots BURST_HZ SEED [N] [WAVELET]
         shots(float(argv[1]), int(argv[2]), int(argv[3]) if len(argv) > 3 else 12,
               argv[4] if len(argv) > 4 else "all")
+        return
+    if argv and argv[0] == "summary":
+        for case in argv[1:] or list(CASES):
+            print(summary(case))
         return
     if argv and argv[0] == "table":
         for case in argv[1:] or list(CASES):
