@@ -17,7 +17,7 @@ points are within 1 %.
 
 Cases: sweep, edge (+40 %), edgesoft (-40 %), edge90, edge90soft, edgelong, edgelongsoft (the 20 / 60 cm
 edge rig bench/rigs/cfrp_pencil_edge_0_long.toml, session 28), edgegain, edgegainsoft (the
-20 / 40 cm rig with the long rig's 20 dB preamps).
+20 / 40 cm rig with the long rig's 20 dB preamps), edgelongraw, edgelongrawsoft (the 20 / 60 cm rig without its preamps).
 
 Run: OMP_NUM_THREADS=1 nice .venv/bin/python bench/bench_wave_seeds.py run [CASE ...] [quiet|clean] [fmax=HZ] [SEEDS...]
      .venv/bin/python bench/bench_wave_seeds.py table [sweep|edge|edgef600 ...]
@@ -57,7 +57,7 @@ def _rig(name: str, variant: str, fmax: float | None = None):
     """The rig file; 'quiet': noise 0.1 uV (bench_unknown_plate's *_quiet); 'clean': also a 24-bit
     ADC (the sweep's 12 bits over +-2 V step by 0.98 mV against its 4-7 mV S0 at 40 cm: without
     noise to dither it the rounding is a deterministic distortion, not a bias of the pick)."""
-    text = (HERE / "rigs" / name.split("+")[0]).read_text()
+    text = (HERE / "rigs" / name.split("+")[0].split("-gain")[0]).read_text()
     if variant in ("quiet", "clean"):
         text = text.replace("noise_v = 1.0e-3", "noise_v = 1.0e-7").replace("noise_v = 2.0e-4", "noise_v = 1.0e-7")
     if variant == "clean":
@@ -65,6 +65,9 @@ def _rig(name: str, variant: str, fmax: float | None = None):
     if "+gain20" in name:     # the 20 dB preamp of the 20 / 60 cm rig on another rig (an A/B of the baseline)
         text = text.replace("volts_per_strain = 2.0e5", "volts_per_strain = 2.0e6").replace(
             "level_v = -0.005", "level_v = -0.05")
+    if "-gain20" in name:     # the 20 / 60 cm rig without its preamps (the band check on one raw shot)
+        text = text.replace("volts_per_strain = 2.0e6", "volts_per_strain = 2.0e5").replace(
+            "level_v = -0.05", "level_v = -0.005")
     if fmax:     # the simulator's band (its records' spectrum is tapered to 0 over its top 10 %)
         text = re.sub(r"wave_fmax_hz = [0-9.e+]+", f"wave_fmax_hz = {fmax:.6g}", text)
     return rig_from_text(text, f"bench/rigs/{name}" + ("" if variant == "noisy" else f" ({variant})"))
@@ -79,7 +82,10 @@ CASES = {"sweep": (SWEEP, 10, 1 / 0.6, AnalysisSettings()), "edge": (EDGE, 36, 1
          # the 20 / 60 cm baseline along 0 deg (names without '_': table() globs '<case>_*')
          "edgelong": (EDGE_LONG, 36, 1 / 1.4, EDGE_BAND), "edgelongsoft": (EDGE_LONG, 36, 1 / 0.6, EDGE_BAND),
          # the 20 / 40 cm rig with the long rig's 20 dB preamps: what the baseline alone buys
-         "edgegain": (EDGE + "+gain20", 36, 1 / 1.4, EDGE_BAND), "edgegainsoft": (EDGE + "+gain20", 36, 1 / 0.6, EDGE_BAND)}
+         "edgegain": (EDGE + "+gain20", 36, 1 / 1.4, EDGE_BAND), "edgegainsoft": (EDGE + "+gain20", 36, 1 / 0.6, EDGE_BAND),
+         # the 20 / 60 cm rig without its preamps
+         "edgelongraw": (EDGE_LONG + "-gain20", 36, 1 / 1.4, EDGE_BAND),
+         "edgelongrawsoft": (EDGE_LONG + "-gain20", 36, 1 / 0.6, EDGE_BAND)}
 
 
 def measure(case: str, seed: int, variant: str, fmax: float | None = None) -> dict:
@@ -94,14 +100,14 @@ def measure(case: str, seed: int, variant: str, fmax: float | None = None) -> di
     bursts = []
     merge_sweep = analysis._merge_sweep
 
-    def traced(parts, notes):
+    def traced(parts, notes, *rest):
         for fc, (feats, *_rest) in parts:
             for w in feats:
                 bursts.append({"burst_hz": fc, "mode": w["mode"], "direction_deg": w["direction_deg"],
                                "frequency_hz": list(w["frequency_hz"]),
                                "group_velocity_m_s": list(w["group_velocity_m_s"]),
                                "sigma_m_s": list(w["sigma_m_s"])})
-        return merge_sweep(parts, notes)
+        return merge_sweep(parts, notes, *rest)
     analysis._merge_sweep = traced
     try:
         feats, *_ = wave_features(recs, rig, spec, settings, [])

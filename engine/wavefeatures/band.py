@@ -125,11 +125,15 @@ def source_band(laminate: Laminate, fs: float, source: SourceModel, level_db: fl
 
 
 def snr_band(x: np.ndarray, noise: np.ndarray, fs_hz: float, snr_db: float = 20.0,
-             fmin_hz: float = 0.0) -> tuple[float, float] | None:
+             fmin_hz: float = 0.0, within: tuple[float, float] | None = None) -> tuple[float, float] | None:
     """The contiguous band around the best signal-to-noise frequency where the scalogram
     peak of ``x`` (cmor2-1, 80 log-spaced frequencies) stands ``snr_db`` above the
     white-noise level of ``noise`` (the pre-trigger samples): the test ``arrival_times``
-    applies to every pick, Hz; None when nothing is that far above the noise."""
+    applies to every pick, Hz; None when nothing is that far above the noise. ``within``:
+    the band asked for (Hz); the best frequency is sought inside it (when the grid has
+    any there), so a stronger but separate low-frequency swell does not take the band away
+    (issue 24, session 28: a pencil's record at 60 cm peaked at 10-15 kHz, below a 20-350 kHz
+    band that also stood 20 dB clear)."""
     x = np.asarray(x, float)
     std = float(np.std(np.asarray(noise, float)))
     if not std > 0:
@@ -138,7 +142,8 @@ def snr_band(x: np.ndarray, noise: np.ndarray, fs_hz: float, snr_db: float = 20.
     wl = waves.PAPER_ALUMINIUM
     peak = np.abs(waves.cwt(x - x[0], fs_hz, f, wl)).max(axis=1)
     snr = 20 * np.log10(np.maximum(peak, 1e-300) / waves.white_noise_level(std, fs_hz, f, wl))
-    k = int(np.argmax(snr))
+    inside = (f >= within[0]) & (f <= within[1]) if within else np.zeros(f.size, bool)
+    k = int(np.flatnonzero(inside)[np.argmax(snr[inside])]) if inside.any() else int(np.argmax(snr))
     if snr[k] < snr_db:
         return None
     lo = hi = k
@@ -186,7 +191,7 @@ def analysis_band(laminate: Laminate, fs_hz: float, settings: WaveSettings = Wav
         if narrow:
             got, what = energy, f"the {settings.band_db:g} dB band of the direct packets"
         else:
-            got = snr_band(record, noise, fs, -settings.band_db, fmin_hz=floor)
+            got = snr_band(record, noise, fs, -settings.band_db, fmin_hz=floor, within=(fmin, fmax))
             what = f"where the direct packets stand {-settings.band_db:g} dB above the noise"
         lo, hi = (max(fmin, got[0]), min(fmax, got[1])) if got else (0.0, 0.0)
         if not hi > lo * 1.02:
