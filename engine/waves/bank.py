@@ -157,8 +157,6 @@ def cwt_decimated(x: np.ndarray, fs_hz: float, freqs_hz: Sequence[float],
     step = max(1, int(1.0 / (frac * 1.05)))
     m_len = sfft.next_fast_len(-(-nfft0 // step))
     nfft = m_len * step
-    bank = _support_bank(tuple(float(f) for f in freqs), float(fs_hz), float(wavelet.bandwidth),
-                         float(wavelet.center), nfft)
     xp = _pad_smoothly(x, nfft)
     X = sfft.fft(xp.astype(np.float32))
     src, dst, h = _folding(tuple(float(f) for f in freqs), float(fs_hz), float(wavelet.bandwidth),
