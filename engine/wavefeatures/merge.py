@@ -216,7 +216,7 @@ def left_out(f_hz, v, sigma, k: float = LOO_SIGMAS, rel: float = LOO_REL) -> np.
     min(2, others - 2) is fitted to the others (weights 1/sigma) and evaluated at it; the
     point is off when its residual exceeds ``k`` x sqrt(its sigma^2 + the others' median
     sigma^2 + the others' rms residual^2) AND ``rel`` x the velocity. The worst such point goes,
-    then the check is repeated on the rest while 4 remain. ``rel`` = 5 %: A0's sqrt(f) rise
+    then the check is repeated on the rest while 4 remain. ``rel`` = 20 % (``LOO_REL``): A0's sqrt(f) rise
     extrapolated one point beyond a quadratic in ln f, or S0's knee, miss by < 2 % on an
     independent-point grid; the gross mislabels seen are 20-60 % (issue 24, session 28: a
     far-edge echo taken for S0, 58 % slow with a 0.7 % sigma, at a merged sweep's low end)."""
