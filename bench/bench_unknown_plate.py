@@ -30,7 +30,7 @@ from labid.workflows.acquisition import AcquisitionSession  # noqa: E402
 from labid.workflows import analysis  # noqa: E402
 from labid.workflows.analysis import AnalysisSettings, wave_features  # noqa: E402
 from labid.inputs.rig import read_rig_text, rig_from_text  # noqa: E402
-from labid.inputs.specimen import load_specimen, specimen_from_dict  # noqa: E402
+from labid.inputs.specimen import load_specimen  # noqa: E402
 from mock_hw import waves as mock_waves  # noqa: E402
 from mock_hw.rig import SimulatedDevice, truth_laminate  # noqa: E402
 
@@ -194,7 +194,8 @@ def main(argv) -> None:
     seed = next((int(a.split("=", 1)[1]) for a in argv if a.startswith("seed=")), 0)
     cases = {
         "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
-        "two_dir": lambda sc, m: run_case("1 m CFRP plate (pencil at the centre, MFCs 10 / 25 cm along 0 and 90 deg)", two_dir, large, 3, sc, m),
+        "two_dir": lambda sc, m: run_case("1 m CFRP plate (pencil at the centre, MFCs 10 / 25 cm along 0 and 90 deg)", two_dir, large, 3, sc, m,
+                                          seed=seed),
         "sweep": lambda sc, m: run_case("1 m CFRP plate (PZT bursts 60-250 kHz, 2 shots each, MFCs 10 / 25 cm along 0 / 90 deg)",
                                         sweep, large, 10, sc, m),
         # session 24: the layouts a lab would choose for S0 (the rig files say why)
