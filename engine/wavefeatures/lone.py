@@ -172,15 +172,14 @@ def found_removed(far: np.ndarray, near: np.ndarray, fs: float, delay_s: float, 
     if lags.size < 3 or lags.min() < 0 or k1 - k0 - max(min(skip[1], k1) - max(skip[0], k0), 0) < 4 * lags.size:
         return None
     pad = int(lags.max())
-    y = np.concatenate([np.zeros(pad), y])               # nothing before the record's start
 
-    def moved(rows):
-        return y[rows[:, None] - lags[None, :] + pad]
+    def moved(near_f, rows):     # the band-passed near record at each row less each lag (0 before its start)
+        return np.concatenate([np.zeros(pad), near_f])[rows[:, None] - lags[None, :] + pad]
 
     rows = np.arange(k0, k1)
     rows = rows[(rows < skip[0]) | (rows >= skip[1])]
-    h = np.linalg.lstsq(moved(rows), x[rows], rcond=None)[0]
-    res = x - moved(np.arange(x.size)) @ h
+    h = np.linalg.lstsq(moved(y, rows), x[rows], rcond=None)[0]
+    res = x - moved(y, np.arange(x.size)) @ h
     s0, s1 = max(skip[0], 0), min(skip[1], x.size)
     if s1 > s0 and np.sum((x - res)[s0:s1] ** 2) > 4.0 * np.sum(x[s0:s1] ** 2):
         # the filter's output over the skipped samples far over the far record there: it does
@@ -188,9 +187,8 @@ def found_removed(far: np.ndarray, near: np.ndarray, fs: float, delay_s: float, 
         return None
 
     def residue_of(far_like: np.ndarray, near_like: np.ndarray) -> np.ndarray:
-        yy = np.concatenate([np.zeros(pad), signal.sosfiltfilt(sos, near_like)])
-        rr = np.arange(far_like.size)
-        return signal.sosfiltfilt(sos, far_like) - yy[rr[:, None] - lags[None, :] + pad] @ h
+        return signal.sosfiltfilt(sos, far_like) - moved(signal.sosfiltfilt(sos, near_like),
+                                                         np.arange(far_like.size)) @ h
 
     return res, residue_of
 

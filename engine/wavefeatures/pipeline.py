@@ -148,8 +148,9 @@ def _velocity(d: Direction, mode: str, wl: waves.Wavelet, rec: Mapping[str, np.n
 
     def known(ch):       # |W| and the noise level, read by every pick in this record (issue 24, session 28)
         if ("abs", ch, wl) not in cache:
-            cache[("abs", ch, wl)] = (np.abs(W(ch)), noise_rms(rec[ch], d.setup.pretrigger, d.setup.fs_hz, d.freqs, wl))
-        return dict(zip(("A", "noise"), cache[("abs", ch, wl)]))
+            cache[("abs", ch, wl)] = {"A": np.abs(W(ch)),
+                                      "noise": noise_rms(rec[ch], d.setup.pretrigger, d.setup.fs_hz, d.freqs, wl)}
+        return cache[("abs", ch, wl)]
 
     src = None
     if force is not None:
