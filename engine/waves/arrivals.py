@@ -96,43 +96,32 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
     width = np.zeros(nf)  # energy time-std of the picked packet, from the curvature of log|W|
     if noise_rms is not None:
         noise = np.broadcast_to(np.asarray(noise_rms, float), (nf,)).copy()
-    for i in range(nf):
-        if not (np.isfinite(lo[i]) and np.isfinite(hi[i])):
-            reason[i] = "empty gate"
-            continue
-        k0 = max(int(np.ceil((lo[i] - t[0]) * fs_hz)), 0)
-        k1 = min(int(np.floor((hi[i] - t[0]) * fs_hz)) + 1, n)
-        if k1 - k0 < 3:
-            reason[i] = "empty gate"
-            continue
-        a = A[i, k0:k1]
-        m = a.max()
-        if m <= 0:
-            reason[i] = "no signal"
-            continue
-        inner = (a[1:-1] >= a[:-2]) & (a[1:-1] > a[2:]) & (a[1:-1] >= first_fraction * m)
-        cand = np.flatnonzero(inner) + 1
-        if cand.size == 0:
-            reason[i] = "peak on the gate edge"
-            continue
-        k = k0 + int(cand[0])
-        la, lb, lc = np.log(np.maximum(A[i, k - 1:k + 2], tiny))
-        den = la - 2 * lb + lc
-        d = 0.5 * (la - lc) / den if den < 0 else 0.0
+    k, ok = _first_peaks(A, t, fs_hz, lo, hi, first_fraction, reason)
+    rows, k = np.flatnonzero(ok), k[ok]
+    # the parabola through log|W| at the peak, every row at once (the same float operations as
+    # the per-row loop they replace, in the same order and precision: outputs equal bit for bit;
+    # issue 24, session 29: that loop was a sixth of a sweep's analysis)
+    la, lb, lc = (np.log(np.maximum(A[rows, k + j], tiny)) for j in (-1, 0, 1))
+    den = la - 2 * lb + lc
+    curved = den < 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = np.where(curved, 0.5 * (la - lc) / den, 0.0)
         # log|W| ~ -t^2 / (2 s_a^2) near a Gaussian peak; energy std = s_a / sqrt(2)
-        width[i] = 1.0 / (fs_hz * np.sqrt(-2.0 * den)) if den < 0 else 0.0
-        d = float(np.clip(d, -0.5, 0.5))
-        times[i] = t[k] + d / fs_hz
-        peak[i] = np.exp(lb - 0.25 * (la - lc) * d)
-        # instantaneous frequency: phase slope around the peak, interpolated at k + d
-        ph = np.angle(W[i, k - 1:k + 2])
-        dph = np.diff(ph)
-        if not (np.abs(dph) < np.pi).all():
-            # a jump of pi or more: np.unwrap's correction (without one, np.unwrap returns
-            # the phases unchanged and this skips its cost: 13 % of a sweep's analysis)
-            dph = np.diff(np.unwrap(ph))
-        fi = dph * fs_hz / (2 * np.pi)  # at k - 1/2 and k + 1/2
-        finst[i] = fi[0] + (fi[1] - fi[0]) * (d + 0.5)
+        width[rows] = np.where(curved, 1.0 / (fs_hz * np.sqrt(-2.0 * den)), 0.0)
+    d = np.clip(d, -0.5, 0.5)
+    times[rows] = t[k] + d / fs_hz
+    peak[rows] = np.exp(lb - 0.25 * (la - lc) * d)
+    # instantaneous frequency: phase slope around the peak, interpolated at k + d
+    ph = np.angle(W[rows[:, None], k[:, None] + np.arange(-1, 2)])
+    dph = ph[:, 1:] - ph[:, :-1]
+    fi = dph * fs_hz / (2 * np.pi)  # at k - 1/2 and k + 1/2
+    # d is a Python float in the per-row form: it then takes fi's precision
+    finst[rows] = fi[:, 0] + (fi[:, 1] - fi[:, 0]) * (d + 0.5).astype(fi.dtype)
+    for j in np.flatnonzero(~(np.abs(dph) < np.pi).all(axis=1)):
+        # a jump of pi or more: np.unwrap's correction (without one, np.unwrap returns
+        # the phases unchanged and this skips its cost: 13 % of a sweep's analysis)
+        fj = np.diff(np.unwrap(ph[j])) * fs_hz / (2 * np.pi)
+        finst[rows[j]] = fj[0] + (fj[1] - fj[0]) * (float(d[j]) + 0.5)
     snr = 20 * np.log10(np.maximum(peak, tiny) / np.maximum(noise, tiny))
     snr[~np.isfinite(noise)] = np.inf
     rel = 20 * np.log10(np.maximum(peak, tiny) / max(peak.max(), tiny))
@@ -153,7 +142,7 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
             reason[i] = f"SNR {snr[i]:.1f} dB < {min_snr_db:g} dB"
         elif rel[i] < min_rel_db:
             reason[i] = f"energy {rel[i]:.1f} dB below the strongest frequency"
-        elif abs(finst[i] - freqs[i]) > max_freq_offset * wavelet.freq_std_hz(freqs[i]):
+        elif abs(finst[i] - freqs[i]) > max_freq_offset * sf[i]:
             reason[i] = f"leakage: instantaneous frequency {finst[i]:.4g} Hz"
         elif notch[i] > max_notch_db:
             reason[i] = f"spectral notch ({notch[i]:.1f} dB below its neighbours)"
@@ -175,6 +164,46 @@ def arrival_times(W: np.ndarray, fs_hz: float, freqs_hz: Sequence[float], wavele
         teff = teff * np.sqrt(1.0 + off ** 2)
         sigma = np.sqrt((teff / np.sqrt(2 * snr_lin)) ** 2 + (1.0 / (fs_hz * np.sqrt(12)) / 10) ** 2)
     return Arrivals(freqs, times, sigma, snr, finst, valid, tuple(reason), wavelet)
+
+
+def _first_peaks(A: np.ndarray, t: np.ndarray, fs_hz: float, lo: np.ndarray, hi: np.ndarray,
+                 first_fraction: float, reason: list) -> tuple[np.ndarray, np.ndarray]:
+    """Per row of |W|, the sample of the first local maximum strictly inside the gate [lo, hi] (s)
+    reaching ``first_fraction`` of the gate's maximum: (k, found); ``reason`` says why not.
+    The windows are gathered into one (rows, widest window) array."""
+    nf, n = A.shape
+    k = np.zeros(nf, int)
+    fin = np.isfinite(lo) & np.isfinite(hi)
+    k0 = np.zeros(nf, int)
+    k1 = np.zeros(nf, int)
+    k0[fin] = np.maximum(np.ceil((lo[fin] - t[0]) * fs_hz), 0)
+    k1[fin] = np.minimum(np.floor((hi[fin] - t[0]) * fs_hz) + 1, n)
+    wide = fin & (k1 - k0 >= 3)
+    for i in np.flatnonzero(~wide):
+        reason[i] = "empty gate"
+    rows = np.flatnonzero(wide)
+    if rows.size == 0:
+        return k, np.zeros(nf, bool)
+    w = k1[rows] - k0[rows]
+    j = np.arange(int(w.max()))
+    a = A[rows[:, None], np.minimum(k0[rows, None] + j, n - 1)]
+    inside = j < w[:, None]
+    m = np.where(inside, a, 0).max(axis=1)
+    signal = m > 0
+    inner = np.zeros(a.shape, bool)
+    inner[:, 1:-1] = ((a[:, 1:-1] >= a[:, :-2]) & (a[:, 1:-1] > a[:, 2:])
+                      & (a[:, 1:-1] >= first_fraction * m[:, None]) & (j[1:-1] <= w[:, None] - 2))
+    has = inner.any(axis=1)
+    first = np.argmax(inner, axis=1)
+    for r, i in enumerate(rows):
+        if not signal[r]:
+            reason[i] = "no signal"
+        elif not has[r]:
+            reason[i] = "peak on the gate edge"
+    found = np.zeros(nf, bool)
+    found[rows] = signal & has
+    k[rows] = k0[rows] + first
+    return k, found
 
 
 def correct_dispersion_bias(arr: Arrivals, degree: int = 3) -> Arrivals:

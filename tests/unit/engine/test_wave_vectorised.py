@@ -1,0 +1,97 @@
+"""The per-frequency loops of ``waves.arrival_times`` done on all rows at once (issue 24, session 29):
+against the plain per-row computation they replaced, written out here, on numpy-made scalograms
+(Gaussian packets with a chirp, noise, and gates that are empty, cut, NaN, on a phase wrap or
+without a peak): every output equal bit for bit."""
+import numpy as np
+
+from engine import waves
+
+
+def _reference(W, fs_hz, freqs, wavelet, t0_index, gate, first_fraction):
+    """The per-row loop of ``arrival_times`` before session 29: (times, peak, width, finst, reason)."""
+    nf, n = W.shape
+    t = (np.arange(n) - t0_index) / fs_hz
+    lo, hi = gate
+    A = np.abs(W)
+    tiny = np.finfo(float).tiny
+    times, finst, peak, width = np.full(nf, np.nan), np.full(nf, np.nan), np.zeros(nf), np.zeros(nf)
+    reason = [""] * nf
+    for i in range(nf):
+        if not (np.isfinite(lo[i]) and np.isfinite(hi[i])):
+            reason[i] = "empty gate"
+            continue
+        k0 = max(int(np.ceil((lo[i] - t[0]) * fs_hz)), 0)
+        k1 = min(int(np.floor((hi[i] - t[0]) * fs_hz)) + 1, n)
+        if k1 - k0 < 3:
+            reason[i] = "empty gate"
+            continue
+        a = A[i, k0:k1]
+        m = a.max()
+        if m <= 0:
+            reason[i] = "no signal"
+            continue
+        cand = np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] > a[2:]) & (a[1:-1] >= first_fraction * m)) + 1
+        if cand.size == 0:
+            reason[i] = "peak on the gate edge"
+            continue
+        k = k0 + int(cand[0])
+        la, lb, lc = np.log(np.maximum(A[i, k - 1:k + 2], tiny))
+        den = la - 2 * lb + lc
+        d = 0.5 * (la - lc) / den if den < 0 else 0.0
+        width[i] = 1.0 / (fs_hz * np.sqrt(-2.0 * den)) if den < 0 else 0.0
+        d = float(np.clip(d, -0.5, 0.5))
+        times[i] = t[k] + d / fs_hz
+        peak[i] = np.exp(lb - 0.25 * (la - lc) * d)
+        fi = np.diff(np.unwrap(np.angle(W[i, k - 1:k + 2]))) * fs_hz / (2 * np.pi)
+        finst[i] = fi[0] + (fi[1] - fi[0]) * (d + 0.5)
+    return times, peak, width, finst, reason
+
+
+def _scalogram(seed):
+    rng = np.random.default_rng(seed)
+    fs, n = 5e6, 1200
+    freqs = np.linspace(40e3, 400e3, 60)
+    tt = np.arange(n) / fs
+    W = np.zeros((freqs.size, n), np.complex64)
+    for i, f in enumerate(freqs):
+        for c, amp, s in ((80e-6 + 0.05 * i * 1e-6, 1.0, 8e-6), (150e-6, rng.uniform(0.2, 1.5), 5e-6)):
+            # a packet near fs / 2 per sample somewhere: its 3 phases straddle the +-pi cut
+            fr = f if i % 7 else 0.45 * fs
+            W[i] += (amp * np.exp(-0.5 * ((tt - c) / s) ** 2) * np.exp(2j * np.pi * fr * (tt - c)
+                                                                        + 1j * 3e8 * (tt - c) ** 2)).astype(np.complex64)
+    W += (1e-3 * (rng.normal(size=W.shape) + 1j * rng.normal(size=W.shape))).astype(np.complex64)
+    W[5] = 0                                                   # no signal
+    lo = rng.uniform(-20e-6, 200e-6, freqs.size)
+    hi = lo + rng.uniform(-1e-6, 120e-6, freqs.size)           # some empty, some past the record
+    lo[3], hi[8] = np.nan, np.nan
+    lo[10], hi[10] = 130e-6, 160e-6                            # holds a packet's maximum
+    lo[11], hi[11] = 151e-6, 170e-6                            # falling: the peak on the gate edge
+    return W, fs, freqs, (lo, hi), rng
+
+
+def test_arrival_times_on_all_rows_equal_the_per_row_loop():
+    for seed in range(6):
+        W, fs, freqs, gate, rng = _scalogram(seed)
+        wl = waves.Wavelet(2.0, 1.0 + seed % 3)
+        ff = (0.5, 0.999)[seed % 2]
+        pre = int(rng.integers(0, 200))
+        got = waves.arrival_times(W, fs, freqs, wl, t0_index=pre, gate_s=gate, first_fraction=ff, noise_rms=1e-3,
+                                  min_snr_db=-1e9, min_rel_db=-1e9, max_freq_offset=np.inf, max_notch_db=np.inf)
+        times, peak, width, finst, reason = _reference(W, fs, freqs, wl, pre, gate, ff)
+        assert np.array_equal(got.times_s, times, equal_nan=True)
+        assert np.array_equal(got.inst_freq_hz, finst, equal_nan=True)
+        assert got.reason == tuple(reason)
+        assert {"empty gate", "no signal", "peak on the gate edge", ""} <= set(reason)
+        ok = np.isfinite(times)
+        assert ok.sum() > 20
+        tiny = np.finfo(float).tiny
+        assert np.array_equal(got.snr_db, 20 * np.log10(np.maximum(peak, tiny) / 1e-3))
+        # sigma (the expression of ``arrival_times``) from the reference's width and SNR
+        tstd, off = wl.time_std_s(freqs), np.where(ok, (finst - freqs) / wl.freq_std_hz(freqs), 0.0)
+        teff = np.maximum(tstd, width) ** 2 / tstd * np.sqrt(1.0 + off ** 2)
+        snr_lin = 10 ** (np.minimum(got.snr_db, 200) / 10)
+        with np.errstate(divide="ignore"):
+            sigma = np.sqrt((teff / np.sqrt(2 * snr_lin)) ** 2 + (1.0 / (fs * np.sqrt(12)) / 10) ** 2)
+        assert np.array_equal(got.sigma_s, sigma, equal_nan=True)
+        # the phase-wrap rows took np.unwrap's path
+        assert np.isfinite(finst[::7]).any() and (np.abs(finst[::7] - 0.45 * fs) < 0.05 * fs).any()
