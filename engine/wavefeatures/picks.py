@@ -20,6 +20,7 @@ import numpy as np
 from .. import waves
 from ..laminate import Laminate
 from ..safe import mode_velocities
+from .peaks import target_peaks
 from .predict import Packet, SourceModel, family, model_maxima, predict_packets, source_signature
 
 __all__ = ["MODES", "WaveSettings", "Sensor", "WaveSetup", "Direction", "noise_rms", "sensor_delay",
@@ -328,49 +329,22 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
     o_half = np.array([0.5 * (ranges[id(p)][1] - ranges[id(p)][0]) + p.spread_s for p in others]
                       ).reshape(len(others), nf)
 
+    best, why = target_peaks(A, t, fs, *ranges[id(target)], target.spread_s, claim, o_mid, o_half,
+                             np.isfinite(target.delay_s) & np.isfinite(lo_s))
+    guard = wl.time_std_s(freqs)
     for i in range(nf):
-        if not np.isfinite(target.delay_s[i]) or not np.isfinite(lo_s[i]):
-            reason[i] = "no prediction"
-            continue
-        a_lo, a_hi = rng(target, i)
-        sig = target.spread_s[i]
-        k0 = max(int(np.ceil((a_lo - 2 * sig - t[0]) * fs)), 1)
-        k1 = min(int(np.floor((a_hi + 2 * sig - t[0]) * fs)) + 1, A.shape[1] - 1)
-        if k1 - k0 < 3:
-            reason[i] = "window outside the record"
-            continue
-        a = A[i, k0 - 1:k1 + 1]
-        peaks = np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] > a[2:])) + k0
-        if peaks.size:
-            peaks = peaks[A[i, peaks] >= 0.05 * A[i, peaks].max()]
-        best = None
-        if peaks.size:
-            # z: the distance of a peak from a packet's nominal place, in its own uncertainty
-            # (the half-width of where it may lie plus its width); a peak is the target's when
-            # no foreign packet is nearer in that sense. A packet predicted much weaker than
-            # the target cannot be a peak as strong (a mode the records did not show, with a
-            # wide velocity range, would otherwise claim every peak inside that range)
-            tc = t[peaks]
-            z_t = np.abs(tc - 0.5 * (a_lo + a_hi)) / (0.5 * (a_hi - a_lo) + sig)
-            rows = claim[:, i]
-            with np.errstate(invalid="ignore", divide="ignore"):
-                z_o = np.abs(tc[None, :] - o_mid[rows, i][:, None]) / o_half[rows, i][:, None]
-            mine = ~(z_o < z_t[None, :]).any(axis=0)
-            if mine.any():
-                ks = peaks[mine]
-                best = int(ks[int(np.argmax(A[i, ks]))])
-        if best is None:
-            reason[i] = "no packet at the predicted time" if peaks.size else "peak on the window edge"
+        if why[i]:
+            reason[i] = why[i]
             continue
         # a dispersive packet within one wavelet time std of the onset is not yet formed (A0's
         # near field: 1-2 % at the low end of a pencil's band, 6 cm from it); S0, barely
         # dispersive, arrives as the source pulse itself, and an electrical source's crosstalk
         # is measured in the record (``crosstalk``, below): S0 is not held to it (issue 24)
-        guard = float(wl.time_std_s(freqs[i]))
-        if mode.startswith("A") and t[best] - hi_s[i] < guard:
+        if mode.startswith("A") and t[best[i]] - hi_s[i] < guard[i]:
             reason[i] = "within a wavelet length of the source time"
             continue
-        gate_lo[i], gate_hi[i] = t[best] - 0.75 * sig, t[best] + 0.75 * sig
+        sig = target.spread_s[i]
+        gate_lo[i], gate_hi[i] = t[best[i]] - 0.75 * sig, t[best[i]] + 0.75 * sig
     arr = waves.arrival_times(W, fs, freqs, wl, t0_index=pre, gate_s=(gate_lo, gate_hi), noise_rms=noise, A=A,
                               min_snr_db=d.settings.min_snr_db, first_fraction=0.999)
     valid = arr.valid.copy()

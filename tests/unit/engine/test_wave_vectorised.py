@@ -95,3 +95,64 @@ def test_arrival_times_on_all_rows_equal_the_per_row_loop():
         assert np.array_equal(got.sigma_s, sigma, equal_nan=True)
         # the phase-wrap rows took np.unwrap's path
         assert np.isfinite(finst[::7]).any() and (np.abs(finst[::7] - 0.45 * fs) < 0.05 * fs).any()
+
+
+def _reference_peaks(A, t, fs, a_lo, a_hi, sig, claim, o_mid, o_half, predicted):
+    """The per-frequency loop of ``arrivals_of`` before session 29: (best sample, reason)."""
+    nf = A.shape[0]
+    best, why = np.zeros(nf, int), [""] * nf
+    for i in range(nf):
+        if not predicted[i]:
+            why[i] = "no prediction"
+            continue
+        k0 = max(int(np.ceil((a_lo[i] - 2 * sig[i] - t[0]) * fs)), 1)
+        k1 = min(int(np.floor((a_hi[i] + 2 * sig[i] - t[0]) * fs)) + 1, A.shape[1] - 1)
+        if k1 - k0 < 3:
+            why[i] = "window outside the record"
+            continue
+        a = A[i, k0 - 1:k1 + 1]
+        peaks = np.flatnonzero((a[1:-1] >= a[:-2]) & (a[1:-1] > a[2:])) + k0
+        if peaks.size:
+            peaks = peaks[A[i, peaks] >= 0.05 * A[i, peaks].max()]
+        b = None
+        if peaks.size:
+            tc = t[peaks]
+            z_t = np.abs(tc - 0.5 * (a_lo[i] + a_hi[i])) / (0.5 * (a_hi[i] - a_lo[i]) + sig[i])
+            rows = claim[:, i]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                z_o = np.abs(tc[None, :] - o_mid[rows, i][:, None]) / o_half[rows, i][:, None]
+            mine = ~(z_o < z_t[None, :]).any(axis=0)
+            if mine.any():
+                ks = peaks[mine]
+                b = int(ks[int(np.argmax(A[i, ks]))])
+        if b is None:
+            why[i] = "no packet at the predicted time" if peaks.size else "peak on the window edge"
+            continue
+        best[i] = b
+    return best, why
+
+
+def test_target_peaks_equal_the_per_frequency_loop():
+    from engine.wavefeatures.peaks import target_peaks
+    for seed in range(6):
+        W, fs, freqs, (lo, hi), rng = _scalogram(seed)
+        A = np.abs(W)
+        nf, n = A.shape
+        t = (np.arange(n) - 100) / fs
+        sig = rng.uniform(2e-6, 10e-6, nf)
+        predicted = np.isfinite(lo) & np.isfinite(hi) & (rng.random(nf) > 0.05)
+        a_lo, a_hi = np.where(predicted, lo, 0.0), np.where(predicted, np.maximum(hi, lo), 0.0)
+        a_hi[:4] = a_lo[:4] = -1.0                          # before the record
+        a_lo[4] = a_hi[4] = 1.0                             # after it
+        k = 6                                               # foreign packets: one between the two packets
+        o_mid = np.vstack([rng.uniform(0, 250e-6, (k - 1, nf)), np.full((1, nf), 115e-6)])
+        o_half = rng.uniform(0.0, 20e-6, (k, nf))
+        o_half[0, ::9] = np.nan
+        claim = rng.random((k, nf)) > 0.3
+        o_mid[1, 20:26], o_half[1, 20:26], claim[1, 20:26] = 0.5 * (a_lo + a_hi)[20:26], 1.0, True   # claims all
+        got = target_peaks(A, t, fs, a_lo, a_hi, sig, claim, o_mid, o_half, predicted)
+        best, why = _reference_peaks(A, t, fs, a_lo, a_hi, sig, claim, o_mid, o_half, predicted)
+        assert got[1] == why
+        assert np.array_equal(got[0], best)
+        assert {"no prediction", "window outside the record", "no packet at the predicted time", ""} <= set(why)
+        assert sum(not r for r in why) > 10
