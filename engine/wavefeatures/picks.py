@@ -20,7 +20,7 @@ import numpy as np
 from .. import waves
 from ..laminate import Laminate
 from ..safe import mode_velocities
-from .peaks import target_peaks
+from .peaks import pick_widths, target_peaks
 from .predict import Packet, SourceModel, family, model_maxima, predict_packets, source_signature
 
 __all__ = ["MODES", "WaveSettings", "Sensor", "WaveSetup", "Direction", "noise_rms", "sensor_delay",
@@ -360,6 +360,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         onsets[rows] + c_src[rows] + p.delay_s[rows]) for p in pk if p is not target and p.model_w is not None}
     at = {int(i): j for j, i in enumerate(rows)}
     peaks_t = target.model_w.max(axis=1) if target.model_w is not None else np.zeros(nf)   # per row, at once
+    widens, a_at, x_at = pick_widths(A, t, fs, arr.times_s[rows], target.spread_s[rows], rows, xtalk)
     for i in range(nf):
         if reason[i]:
             valid[i], why[i] = False, reason[i]
@@ -370,13 +371,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         # the packet's measured width (curvature of log|W| at the pick: amplitude std
         # 1 / (fs sqrt(-d2))) where wider than predicted (a sloping spectrum inside the
         # window, dispersion): every packet at this frequency is taken as that much wider
-        kc = int(round((tc - t[0]) * fs))
-        widen = 1.0
-        if 1 <= kc < A.shape[1] - 1:
-            la, lb, lc = np.log(np.maximum(A[i, kc - 1:kc + 2], 1e-300))
-            d2 = la - 2 * lb + lc
-            if d2 < 0:
-                widen = float(np.clip(1.0 / (fs * math.sqrt(-d2)) / st, 1.0, 3.0))
+        widen = float(widens[at[i]])        # (``peaks.pick_widths``: every row at once)
         st *= widen
         # a foreign packet of level rho at the pick, g from it, shifts the maximum of a packet
         # of amplitude std st by ~ rho g st^2 / sp^2 (first order); two edges at the same
@@ -426,11 +421,10 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         if xtalk is not None:
             # the excitation's crosstalk as measured in this record (``crosstalk.bound_in``): its level
             # and slope at the pick bound the shift like a foreign packet's
-            kc = min(max(int(round((tc - t[0]) * fs)), 1), A.shape[1] - 2)
-            if A[i, kc] > 0:
-                ax = float(xtalk[i, kc - 1:kc + 2].max())
-                dax = float(np.abs(np.diff(xtalk[i, kc - 1:kc + 2])).max()) * fs
-                items.append((ax / A[i, kc], (st * st * dax + 0.7 * st * ax) / A[i, kc], "crosstalk", "crosstalk"))
+            a_kc = a_at[at[i]]
+            if a_kc > 0:
+                ax, dax = float(x_at[0][at[i]]), float(x_at[1][at[i]]) * fs
+                items.append((ax / a_kc, (st * st * dax + 0.7 * st * ax) / a_kc, "crosstalk", "crosstalk"))
         if not items:
             continue
         # packets of one mode over paths of equal length (two edges at the same distance)
