@@ -44,7 +44,8 @@ For each propagation direction of the wave sensors (``measure_waves``):
    three measured on all shots);
 7. shots: per shot a curve; across shots the mean, with the scatter-based sigma (not
    below the per-shot noise sigma over sqrt(n)) and the wavelet-bias term of a
-   centre-frequency sweep (docs/wavelet-bias.md) in quadrature;
+   centre-frequency sweep (docs/wavelet-bias.md; the swept wavelet measured once, on the
+   shots' mean record) in quadrature;
 8. the features keep only points a wavelet resolution apart (each point's own wavelet,
    ``merge.independent_mask``), less those off the smooth curve (``merge.off_curve``, ``odd_one``).
 
