@@ -22,7 +22,7 @@ from engine.wavefeatures import merge as waves_merge, sweep as waves_sweep
 from engine.wavefeatures import pipeline as waves_pipeline
 from engine.safe import ply_stiffness
 from engine.wavefeatures.pipeline import WaveSettings
-from engine.wavefeatures.shots import more_shots_note
+from engine.wavefeatures.shots import more_shots_note, stack_shots
 from engine.wavefeatures.predict import SourceModel
 
 from ..base.errors import UserError
@@ -195,21 +195,27 @@ def _wave_features_one(records: Sequence[Record], rig: Rig, specimen: Specimen,
     force = _source_channel(rig, r0)
     source = source_model(rig.wave_source) if rig.wave_source is not None else SourceModel()
     far = max(sensors, key=lambda c: rig.wave_sensor(c.name).distance_m) if sensors else None
-    # the far sensor's record from the first possible arrival on: the direct packets; triggered
-    # on a wave sensor, the onset lies its travel time before the trigger (issue 24, session 25)
-    rec_far = None
+    names = [c.name for c in sensors] + ([force.name] if force else [])
+    # the band is judged on what is picked: the far sensor's first group of averaged shots
+    # (``stack_shots``, as ``measure_waves`` groups the usable shots), not one raw shot, whose
+    # noise is sqrt(group) x higher; not the mean of all shots either: a curve is picked per
+    # group. From the first possible arrival on: the direct packets; triggered on a wave
+    # sensor, the onset lies its travel time before the trigger (issue 24, session 25)
+    rec_far = noise = None
     if far is not None:
+        ok = usable_shots(records, names, [], "wave") or list(records)
+        x_far = stack_shots([{far.name: r.scaled(far.name)} for r in ok])[0][0][far.name]
         c_max = _fastest_bulk(specimen)
         r_trig = rig.wave_sensor(r0.trigger.channel) if r0.trigger is not None else None
         r_trig = r_trig.distance_m if r_trig is not None else 0.0
         k0 = pre + int(max(rig.wave_sensor(far.name).distance_m - r_trig, 0.0) / c_max * fs)
-        rec_far = r0.scaled(far.name)[min(k0, r0.timing.samples - 16):]
+        rec_far = x_far[min(k0, r0.timing.samples - 16):]
+        noise = x_far[:int(0.8 * pre)] if pre >= 80 else None
     try:
         band = waves_pipeline.analysis_band(
             specimen.laminate, fs, ws_settings,
             r0.scaled(force.name) if force is not None and force.kind == "force" else None, pre,
-            source=source, record=rec_far,
-            noise=r0.scaled(far.name)[:int(0.8 * pre)] if far is not None and pre >= 80 else None)
+            source=source, record=rec_far, noise=noise)
     except waves.WaveError as e:
         raise UserError(str(e), key="wave band") from None
     notes.extend(band.notes)
@@ -220,7 +226,6 @@ def _wave_features_one(records: Sequence[Record], rig: Rig, specimen: Specimen,
         notes.append(band.empty)
         return [], {}, {}, {}, {"empty": band.empty}
     freqs = band.freqs
-    names = [c.name for c in sensors] + ([force.name] if force else [])
     recs = usable_shots(records, names, notes, "wave")
     if not recs:
         return [], {}, {}, {}, {}
