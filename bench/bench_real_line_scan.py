@@ -25,6 +25,9 @@ Run: OMP_NUM_THREADS=1 .venv/bin/python bench/bench_real_line_scan.py [--pairs]
 ``--pairs``: labid takes two sensors per direction (the nearest and the farthest); the other
 positions of the line are given to it as other pairs (``PAIRS``, mm), each analysed alone, every
 point against the same estimates: do the positions agree, and does another pair hold more points?
+Each analysis also prints the crosstalk coupling bounds it used per sensor distance
+(``engine.wavefeatures.crosstalk``: min-max over shots and wavelets; session 29 moved its noise
+std to the picks' median-block estimate, ``engine.wavefeatures.noise``).
 """
 from __future__ import annotations
 
@@ -44,6 +47,19 @@ sys.path.insert(0, str(ROOT))
 from bench._machine import machine  # noqa: E402
 from bench.bench_real_pitch_catch import cli, write_csv  # noqa: E402
 from bench.independent.legendre_safe import LegendrePlate, branches, layers_of  # noqa: E402
+from engine.wavefeatures import crosstalk  # noqa: E402
+
+#: the crosstalk coupling bounds of the current analysis: sensor distance (m) -> [c, ...]
+BOUNDS: dict = {}
+
+
+def _traced_bound(real):
+    """``crosstalk._bound`` that also notes the coupling bound c per sensor distance."""
+    def bound(d, x, s, *rest):
+        out = real(d, x, s, *rest)
+        BOUNDS.setdefault(round(s.distance_m, 4), []).append(out[1])
+        return out
+    return bound
 
 HERE = ROOT / "bench" / "import_real"
 MIRROR = Path("/work/.mirror/eriknbd+Lamb_wave_analisis/repo")
@@ -111,6 +127,7 @@ def _rig_for(rig_text: str, f0: float, fs: float, n: int, pair: tuple[float, flo
 
 def main() -> None:
     print(f"machine: {machine()}")
+    crosstalk._bound = _traced_bound(crosstalk._bound)
     if not MIRROR.exists():
         print(f"records not found: fetch github:eriknbd/Lamb_wave_analisis (mirror {MIRROR})")
         return
@@ -152,8 +169,11 @@ def main() -> None:
                 if code:
                     print(f"\n{f0 / 1e3:.0f} kHz {spec}: import failed ({code}): {out.strip()[-300:]}")
                     continue
+                BOUNDS.clear()
                 code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json")])
                 print(f"\n{f0 / 1e3:.0f} kHz, {spec}: analyze {wa:.1f} s wall / {ca:.1f} s CPU (exit {code})")
+                print("  crosstalk coupling bound: " + ", ".join(
+                    f"{r * 1e3:.0f} mm {min(c):.2g}-{max(c):.2g}" for r, c in sorted(BOUNDS.items())))
                 if "set --wave-band " in out:       # as a user would: the band the records hold
                     wb = out.split("set --wave-band ")[1].split()[0].rstrip(".;,")
                     code, out, wa, ca = cli(["analyze", str(d / "run.h5"), "--out", str(d / "f.json"),

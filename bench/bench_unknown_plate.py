@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench._machine import machine  # noqa: E402
 from bench.independent.legendre_safe import branches, layers_of, plate_of, transfer  # noqa: E402
 from labid.workflows.acquisition import AcquisitionSession  # noqa: E402
-from labid.workflows import analysis  # noqa: E402
+from labid.workflows import wave_analysis as analysis  # noqa: E402  (the wave part: its _merge_sweep hook)
 from labid.workflows.analysis import AnalysisSettings, wave_features  # noqa: E402
 from labid.inputs.rig import read_rig_text, rig_from_text  # noqa: E402
 from labid.inputs.specimen import load_specimen  # noqa: E402

@@ -43,7 +43,7 @@ from bench._machine import machine  # noqa: E402
 from bench_unknown_plate import EDGE_BAND, HERE, records, reference  # noqa: E402
 from labid.inputs.rig import rig_from_text  # noqa: E402
 from labid.inputs.specimen import load_specimen  # noqa: E402
-from labid.workflows import analysis  # noqa: E402
+from labid.workflows import wave_analysis as analysis  # noqa: E402  (the wave part: its _merge_sweep hook)
 from labid.workflows.analysis import AnalysisSettings, wave_features  # noqa: E402
 from mock_hw.rig import truth_laminate  # noqa: E402
 

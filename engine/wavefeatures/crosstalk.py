@@ -30,30 +30,28 @@ from typing import Mapping
 import numpy as np
 
 from .. import waves
+from .noise import noise_level
 from .picks import Direction, Sensor, nominal_cg
 
 __all__ = ["coupling_bound", "noise_std", "bound_in"]
 
 
 def noise_std(x: np.ndarray, pre: int) -> tuple[float, float] | None:
-    """(std, baseline) of a record: the std of its quietest 64-sample block in the pre-trigger
-    samples and the last quarter (as ``picks.noise_rms``); the baseline is that block's mean
-    when it lies in the pre-trigger (wave-free), else the whole record's mean: a tail holds
-    the coda, whose quietest block is a slow swing off the baseline (issue 24, session 28: on
-    the eriknbd 250 kHz records, no pre-trigger, that block's mean was 0.0029 V against a
-    baseline of 0.0002 V, 14 x the noise, and the offset, read as crosstalk over the drive's
-    window, bounded the coupling at 0.0056 instead of ~5e-4); a sensor's record of waves is
-    AC, so its mean over the record is the baseline. None when too short."""
-    m = int(0.8 * pre)
-    x = np.asarray(x, float)
-    head = [b for b in np.array_split(x[:m], max(m // 64, 1)) if b.size >= 64]
-    tail = x[-(len(x) // 4):]
-    blocks = [(b, True) for b in head] + [(b, False) for b in np.array_split(tail, max(len(tail) // 64, 1))
-                                          if b.size >= 64]
-    if not blocks:
+    """(std, baseline) of a record: the std is ``noise.noise_level``'s, the one the picks' SNR
+    test uses (``picks.noise_rms``: the quieter of the pre-trigger samples and the last quarter,
+    by the median std of their 64-sample blocks; the smallest block's std, used here before
+    session 29, reads 17-22 % under white noise). The baseline is the pre-trigger blocks' median
+    mean when that part is the quieter (wave-free), else the whole record's mean: a tail holds
+    the coda, a slow swing off the baseline (issue 24, session 28: on the eriknbd 250 kHz
+    records, no pre-trigger, the tail's quietest block's mean was 0.0029 V against a baseline of
+    0.0002 V, 14 x the noise, and the offset, read as crosstalk over the drive's window, bounded
+    the coupling at 0.0056 instead of ~5e-4); a sensor's record of waves is AC, so its mean over
+    the record is the baseline. None when too short."""
+    est = noise_level(x, pre)
+    if est is None:
         return None
-    b, quiet = min(blocks, key=lambda bq: float(np.std(bq[0])))
-    return float(np.std(b)), float(np.mean(b) if quiet else np.mean(x))
+    std, base = est
+    return std, base if base is not None else float(np.mean(np.asarray(x, float)))
 
 
 def coupling_bound(x: np.ndarray, drive: np.ndarray, k_onset: int, k_first: int,

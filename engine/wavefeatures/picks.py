@@ -22,6 +22,7 @@ from ..laminate import Laminate
 from ..safe import mode_velocities
 from .peaks import pick_widths, target_peaks
 from .predict import Packet, SourceModel, family, model_maxima, predict_packets, source_signature
+from .noise import noise_level
 
 __all__ = ["MODES", "WaveSettings", "Sensor", "WaveSetup", "Direction", "noise_rms", "sensor_delay",
            "direction_of", "locate_onset", "packets_at", "arrivals_of", "nominal_cg"]
@@ -118,16 +119,10 @@ def noise_rms(x: np.ndarray, pre: int, fs: float, freqs: np.ndarray, wl: waves.W
     smallest block's std, used before, was 17-22 % under the noise's std for 38-150 blocks
     of white noise, so every pick's sigma was as much too small: issue 24, session 27.)
     """
-    m = int(0.8 * pre)
-    tail = np.asarray(x[-(len(x) // 4):], float)
-    levels = []
-    for seg in (np.asarray(x[:m], float), tail):
-        stds = [np.std(b - b.mean()) for b in np.array_split(seg, max(len(seg) // 64, 1)) if b.size >= 64]
-        if stds:
-            levels.append(float(np.median(stds)))
-    if m < 64 or not levels:
+    level = noise_level(x, pre)     # the estimate crosstalk.noise_std shares (engine.wavefeatures.noise)
+    if int(0.8 * pre) < 64 or level is None:
         return None
-    std = min(levels)
+    std = level[0]
     if not std > 0:  # a noiseless (simulated) record: nothing to compare with
         return None
     return waves.white_noise_level(std, fs, freqs, wl)

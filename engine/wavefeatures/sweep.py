@@ -13,7 +13,7 @@ its mismatch line ("S0 arrives 85 % later") is not the sweep's either. That burs
 that mode and direction is not merged, its mismatch line is not used, and a note says so.
 
 The ratios are the surveys' own (``WaveResult.survey``, carried per burst in the info of
-``labid.workflows.analysis._wave_features_one``). Pure: dicts in. Units: Hz.
+``labid.workflows.wave_analysis._wave_features_one``). Pure: dicts in. Units: Hz.
 """
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from engine.wavefeatures import merge, sweep
-from labid.workflows.analysis import _merge_sweep
+from labid.workflows.wave_analysis import _merge_sweep
 
 
 def _surveyed(f, ratios):
