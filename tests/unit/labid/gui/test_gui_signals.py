@@ -24,6 +24,9 @@ HANG_GUARD_S = 900
 
 @pytest.fixture(scope="module")
 def run_file(tmp_path_factory):
+    # the hammer record of tests/integration/test_report.py; that folder is on sys.path only
+    # when pytest collected it first (a run of this file alone did not find the module)
+    sys.path.insert(0, str(ROOT / "tests" / "integration"))
     from test_report import hammer_record
     p = tmp_path_factory.mktemp("sig") / "run.h5"
     spec = resources.files("labid.data").joinpath(BUILTIN["cfrp"]).read_text()
