@@ -21,6 +21,7 @@ from .. import waves
 from ..laminate import Laminate
 from ..safe import mode_velocities
 from .predict import Packet, SourceModel, family, model_maxima, predict_packets, source_signature
+from . import judge
 
 __all__ = ["MODES", "WaveSettings", "Sensor", "WaveSetup", "Direction", "noise_rms", "sensor_delay",
            "direction_of", "locate_onset", "packets_at", "arrivals_of", "nominal_cg"]
@@ -451,12 +452,12 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
                           (p.mode, round(p.length_m, 3))))
         if xtalk is not None:
             # the excitation's crosstalk as measured in this record (``crosstalk.bound_in``): its level
-            # and slope at the pick bound the shift like a foreign packet's
+            # and slope bound the shift like a foreign packet's, taken at the target's predicted
+            # time, not at the pick (``judge``: a test at the pick keeps the late ones)
             kc = min(max(int(round((tc - t[0]) * fs)), 1), A.shape[1] - 2)
             if A[i, kc] > 0:
-                ax = float(xtalk[i, kc - 1:kc + 2].max())
-                dax = float(np.abs(np.diff(xtalk[i, kc - 1:kc + 2])).max()) * fs
-                items.append((ax / A[i, kc], (st * st * dax + 0.7 * st * ax) / A[i, kc], "crosstalk", "crosstalk"))
+                items.append((*judge.crosstalk_at(xtalk[i], A[i, kc], 0.5 * sum(rng(target, i)) - t[0], fs, st),
+                              "crosstalk", "crosstalk"))
         if not items:
             continue
         # packets of one mode over paths of equal length (two edges at the same distance)
