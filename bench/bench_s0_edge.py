@@ -37,7 +37,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench.bench_unknown_plate import HERE, independent_transfer, records, reference  # noqa: E402
-from engine.wavefeatures import pipeline  # noqa: E402
+from bench.s0_trace import by_wavelet, s0_picks  # noqa: E402
 from engine.waves import Wavelet  # noqa: E402
 from labid.inputs.rig import rig_from_text  # noqa: E402
 from labid.inputs.specimen import load_specimen  # noqa: E402
@@ -99,35 +99,23 @@ def spectrum_db(x: np.ndarray, fs: float, f: np.ndarray) -> tuple[np.ndarray, np
 def trace(rig, spec, recs, wavelet: str | None, lo: float, hi: float) -> list[str]:
     """Per wavelet and analysis frequency in [lo, hi]: the S0 0 deg delay error (see the module)."""
     true = truth_laminate(spec.laminate, rig.sim.truth_scale)
-    log: dict = {}
-    orig = pipeline._velocity
-
-    def traced(d, mode, wl, rec, cache):
-        g, out = orig(d, mode, wl, rec, cache)
-        if mode == "S0" and d.direction == 0.0 and d.strict:
-            far, src = out["far"], out["source"]
-            log.setdefault(wl.name, {})[id(rec)] = (far.times_s - src.times_s, far.valid & src.valid, d.freqs.copy(),
-                                                    far.inst_freq_hz, far.snr_db, rec[d.setup.force_channel])
-        return g, out
-    pipeline._velocity = traced
     settings = AnalysisSettings()
     if wavelet:
         w = Wavelet.from_name(wavelet)
         settings = AnalysisSettings(wavelet=(w.bandwidth, w.center))
     c0 = time.process_time()
     notes: list[str] = []
-    try:
+    with s0_picks() as log:
         feats = analysis._wave_features_one(recs, rig, spec, settings, notes)[0]
-    finally:
-        pipeline._velocity = orig
     fs = recs[0].timing.rate_hz
     fg = np.linspace(0.3 * lo, 1.5 * hi, 400)
     cg = reference(true, 0.0, fg)["S0"]       # one table of the true plate, interpolated below
     lines = [f"  analysis {time.process_time() - c0:.1f} s CPU; " + "; ".join(
         n for n in notes if "wavelet whose" in n and n.startswith("direction 0"))[:300]]
-    for name, ent in sorted(log.items()):
-        D, V, F, FI, SNR, X = (np.array([e[k] for e in ent.values()]) for k in range(6))
-        F = F[0]
+    for name, ent in by_wavelet(log).items():
+        D, V, FI, SNR, X = (np.array([getattr(e, k) for e in ent]) for k in ("delay", "valid", "finst", "snr_db",
+                                                                            "source_record"))
+        F = ent[0].freqs
         db, slope = spectrum_db(X.mean(axis=0), fs, F)
         sel = np.flatnonzero((F >= lo) & (F <= hi) & (V.sum(axis=0) > 0))
         if not sel.size:
