@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from bench._machine import machine  # noqa: E402
 from bench.bench_unknown_plate import HERE, records, reference  # noqa: E402
-from engine.wavefeatures import picks, pipeline  # noqa: E402
+from bench.s0_trace import by_wavelet, s0_picks  # noqa: E402
 from labid.inputs.rig import rig_from_text  # noqa: E402
 from labid.inputs.specimen import load_specimen  # noqa: E402
 from labid.workflows import wave_analysis as analysis  # noqa: E402  (the wave part: its _merge_sweep hook)
@@ -32,9 +32,11 @@ from mock_hw.rig import truth_laminate  # noqa: E402
 
 
 def table(wl_name, entries, true) -> None:
-    """Per analysis frequency of one wavelet: the shots' mean delay error, scatter, mean sigma."""
-    D, S, V, F, N, TF, SF, TS, SS, SNR, FI = (np.array([x[k] for x in entries]) for k in range(11))
-    F = F[0]
+    """Per analysis frequency of one wavelet: the shots' mean delay error, scatter, mean sigma
+    (``entries``: the wavelet's ``s0_trace.Pick`` of every shot)."""
+    D, S, V, N, TF, SF, TS, SS, SNR, FI = (np.array([getattr(x, k) for x in entries]) for k in (
+        "delay", "sigma", "valid", "noise_sigma", "far_t", "far_s", "src_t", "src_s", "snr_db", "finst"))
+    F = entries[0].freqs
     exp = 0.4 / reference(true, 0.0, F)["S0"]
     print(f"{wl_name}, {D.shape[0]} shots, per analysis frequency: delay error of the shots' mean vs the true "
           "plate, the shots' scatter (std, ddof 1), the mean sigma a shot reports, their ratio; the same for "
@@ -64,32 +66,9 @@ def main(argv) -> None:
     recs = [r for r in records(rig, large, 12 * n_burst, 0, "independent")
             if r.meta["burst_frequency_hz"] == fb]
     rig_f = replace(rig, wave_source=replace(rig.wave_source, burst=rig.wave_source.burst.at(fb)))
-    log: dict = {}
-    orig = pipeline._velocity
-
-    def traced(d, mode, wl, rec, cache):
-        g, out = orig(d, mode, wl, rec, cache)
-        if mode == "S0" and d.direction == 0.0 and d.strict and wl_name in (wl.name, "all"):
-            far, src = out["far"], out["source"]
-            nf, ns = (noise_part.get(id(a), (a, a.sigma_s))[1] for a in (far, src))
-            log[(wl.name, id(rec))] = (far.times_s - src.times_s, np.hypot(far.sigma_s, src.sigma_s),
-                                       far.valid & src.valid, d.freqs.copy(), np.hypot(nf, ns),
-                                       far.times_s, far.sigma_s, src.times_s, src.sigma_s, far.snr_db,
-                                       far.inst_freq_hz)
-        return g, out
-    pipeline._velocity = traced
-    # the noise part of a pick's sigma, before the foreign packets' shift bound (a systematic
+    # the noise part of a pick's sigma: before the foreign packets' shift bound (a systematic
     # term, the same on every shot) joins it in picks.arrivals_of's last step
-    noise_part: dict = {}
-    orig_replace = picks.replace
-
-    def replace_traced(obj, **kw):
-        new = orig_replace(obj, **kw)
-        if "sigma_s" in kw and "reason" in kw:
-            noise_part[id(new)] = (new, obj.sigma_s.copy())
-        return new
-    picks.replace = replace_traced
-    try:
+    with s0_picks(wl_name, noise_part=True) as log:
         for n in (2, len(recs)):
             log.clear()
             feats = analysis._wave_features_one(recs[:n], rig_f, large, AnalysisSettings(), [])[0]
@@ -99,14 +78,11 @@ def main(argv) -> None:
                 print(f"burst {fb / 1e3:g} kHz, {n} shots, S0 0 deg points: " + ", ".join(
                     f"{a / 1e3:.1f} kHz {100 * (b / r - 1):+.2f} % (sigma {100 * e / r:.2f} %)"
                     for a, b, e, r in zip(f, v, s, ref)))
-    finally:
-        pipeline._velocity = orig
-        picks.replace = orig_replace
     if not log:
         print(f"{wl_name}: not among the wavelets measured on all shots")
         return
-    for name in sorted({k[0] for k in log}):
-        table(name, [x for k, x in log.items() if k[0] == name], true)
+    for name, entries in by_wavelet(log).items():
+        table(name, entries, true)
     print(f"CPU {time.process_time() - c0:.1f} s")
 
 

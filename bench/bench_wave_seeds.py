@@ -259,9 +259,9 @@ def shots(fb: float, seed: int, n: int = 12, wl_name: str = "all") -> None:
     on all shots, the shots' mean delay error against the true plate (0.4 m / legendre_safe's
     group velocity), its standard error, the shots' scatter, the mean sigma a shot reports and
     their ratio, the median far SNR and instantaneous frequency. The tracing follows
-    bench_sweep_shots.py (h51 / h53, session 27; copied, not imported: that file is another
-    engineer's); raw lines to OUT / shots_<kHz>_<seed>.txt."""
-    from engine.wavefeatures import pipeline   # noqa: PLC0415 - this subcommand only
+    bench_sweep_shots.py (h51 / h53, session 27); the hook is bench/s0_trace.py's, shared with it
+    (session 29); raw lines to OUT / shots_<kHz>_<seed>.txt."""
+    from bench.s0_trace import by_wavelet, s0_picks   # noqa: PLC0415 - this subcommand only
     from engine.waves import Wavelet   # noqa: PLC0415
     spec = load_specimen(str(HERE / "rigs" / "cfrp_large.toml"))
     rig = _rig(SWEEP, "noisy")
@@ -270,23 +270,10 @@ def shots(fb: float, seed: int, n: int = 12, wl_name: str = "all") -> None:
     true = truth_laminate(spec.laminate, rig.sim.truth_scale)
     c0 = time.process_time()
     recs = records(rig, spec, n, seed, "independent")
-    log: dict = {}
-    orig = pipeline._velocity
-
-    def traced(d, mode, wl, rec, cache):
-        g, out = orig(d, mode, wl, rec, cache)
-        if mode == "S0" and d.direction == 0.0 and d.strict and wl_name in (wl.name, "all"):
-            far, src = out["far"], out["source"]
-            log[(wl.name, id(rec))] = (far.times_s - src.times_s, np.hypot(far.sigma_s, src.sigma_s),
-                                       far.valid & src.valid, d.freqs.copy(), far.snr_db, far.inst_freq_hz)
-        return g, out
-    pipeline._velocity = traced
-    try:
-        forced = Wavelet.from_name(wl_name, None)     # a wavelet named: the analysis uses it alone
-        settings = AnalysisSettings(wavelet=(forced.bandwidth, forced.center)) if forced else AnalysisSettings()
+    forced = Wavelet.from_name(wl_name, None)     # a wavelet named: the analysis uses it alone
+    settings = AnalysisSettings(wavelet=(forced.bandwidth, forced.center)) if forced else AnalysisSettings()
+    with s0_picks(wl_name) as log:
         feats = analysis._wave_features_one(recs, rig, spec, settings, [])[0]
-    finally:
-        pipeline._velocity = orig
     lines = [f"# burst {fb / 1e3:g} kHz, seed {seed}, {n} shots, {time.process_time() - c0:.1f} s CPU, "
              f"load {os.getloadavg()[0]:.1f} at {time.strftime('%H:%M', time.gmtime())} UTC"]
     for w in (w for w in feats if w["mode"] == "S0" and w["direction_deg"] == 0.0):
@@ -294,10 +281,9 @@ def shots(fb: float, seed: int, n: int = 12, wl_name: str = "all") -> None:
         ref = reference(true, 0.0, f)["S0"]
         lines.append("points: " + ", ".join(f"{a / 1e3:.1f} kHz {100 * (b / r - 1):+.2f} % (sigma {100 * e / r:.2f} %)"
                                             for a, b, e, r in zip(f, v, sg, ref)))
-    for name in sorted({k[0] for k in log}):
-        ent = [x for k, x in log.items() if k[0] == name]
-        D, S, V, F, SNR, FI = (np.array([x[k] for x in ent]) for k in range(6))
-        F = F[0]
+    for name, ent in by_wavelet(log).items():
+        D, S, V, SNR, FI = (np.array([getattr(x, k) for x in ent]) for k in ("delay", "sigma", "valid", "snr_db", "finst"))
+        F = ent[0].freqs
         exp = 0.4 / reference(true, 0.0, F)["S0"]
         lines.append(f"{name}, {D.shape[0]} shots: f kHz | n | mean delay err us (s.e.) | % of the delay | scatter us"
                      " | mean sigma us | scatter / sigma | far SNR dB | finst kHz")

@@ -23,6 +23,7 @@ from ..safe import mode_velocities
 from .peaks import pick_widths, target_peaks
 from .predict import Packet, SourceModel, family, model_maxima, predict_packets, source_signature
 from .noise import noise_level
+from . import judge
 
 __all__ = ["MODES", "WaveSettings", "Sensor", "WaveSetup", "Direction", "noise_rms", "sensor_delay",
            "direction_of", "locate_onset", "packets_at", "arrivals_of", "nominal_cg"]
@@ -355,7 +356,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         onsets[rows] + c_src[rows] + p.delay_s[rows]) for p in pk if p is not target and p.model_w is not None}
     at = {int(i): j for j, i in enumerate(rows)}
     peaks_t = target.model_w.max(axis=1) if target.model_w is not None else np.zeros(nf)   # per row, at once
-    widens, a_at, x_at = pick_widths(A, t, fs, arr.times_s[rows], target.spread_s[rows], rows, xtalk)
+    widens, a_at, _ = pick_widths(A, t, fs, arr.times_s[rows], target.spread_s[rows], rows)
     for i in range(nf):
         if reason[i]:
             valid[i], why[i] = False, reason[i]
@@ -415,11 +416,12 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
                           (p.mode, round(p.length_m, 3))))
         if xtalk is not None:
             # the excitation's crosstalk as measured in this record (``crosstalk.bound_in``): its level
-            # and slope at the pick bound the shift like a foreign packet's
+            # and slope bound the shift like a foreign packet's, taken at the target's predicted
+            # time, not at the pick (``judge``: a test at the pick keeps the late ones)
             a_kc = a_at[at[i]]
             if a_kc > 0:
-                ax, dax = float(x_at[0][at[i]]), float(x_at[1][at[i]]) * fs
-                items.append((ax / a_kc, (st * st * dax + 0.7 * st * ax) / a_kc, "crosstalk", "crosstalk"))
+                items.append((*judge.crosstalk_at(xtalk[i], a_kc, 0.5 * sum(rng(target, i)) - t[0], fs, st),
+                              "crosstalk", "crosstalk"))
         if not items:
             continue
         # packets of one mode over paths of equal length (two edges at the same distance)
