@@ -191,6 +191,8 @@ def main(argv) -> None:
                              f"bench/rigs/cfrp_pencil_edge_{d}.toml") for d in (0, 90)}
     edge_long = rig_from_text((HERE / "rigs" / "cfrp_pencil_edge_0_long.toml").read_text(),
                               "bench/rigs/cfrp_pencil_edge_0_long.toml")
+    sweep_pre = rig_from_text((HERE / "rigs" / "cfrp_pzt_sweep_2dir_far_pre.toml").read_text(),
+                              "bench/rigs/cfrp_pzt_sweep_2dir_far_pre.toml")
     seed = next((int(a.split("=", 1)[1]) for a in argv if a.startswith("seed=")), 0)
     cases = {
         "default": lambda sc, m: run_case("default rig (pencil, MFCs 5 / 20 cm, 0 deg)", default, cfrp, 3, sc, m),
@@ -214,6 +216,11 @@ def main(argv) -> None:
         # session 28: 16 shots per burst, the count a lab averages on its scope (stacked in groups)
         "sweep_far_80": lambda sc, m: run_case("the sweep_far rig, 16 shots per burst (80)", sweep_far, large, 80, sc, m,
                                                seed=seed),
+        # session 29: the sweep_far rig with a 20 dB preamp at each MFC (the rig file says why)
+        "sweep_pre": lambda sc, m: run_case("the sweep_far rig with 20 dB preamps, 2 shots per burst (10)", sweep_pre,
+                                            large, 10, sc, m, seed=seed),
+        "sweep_pre_80": lambda sc, m: run_case("the sweep_far rig with 20 dB preamps, 16 shots per burst (80)",
+                                               sweep_pre, large, 80, sc, m, seed=seed),
         # session 25: S0 from leads broken on the plate's edge (an in-plane force), one rig per
         # direction (the force along the sensors' line); A0 from the face breaks of two_dir_s0
         "edge": lambda sc, m: [run_case(f"1 m CFRP plate ({n} pencil breaks on the edge, force along {d} deg, MFCs "
