@@ -43,6 +43,9 @@ from typing import Any, Callable, Sequence
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from engine.laminate import PhysicsError
+from engine.safe import ply_stiffness
+
 from ..inputs.rig import rig_from_text
 from ..inputs.specimen import Specimen, specimen_from_dict
 from ..store import RunStore
@@ -150,6 +153,17 @@ def _curves_fixed(ch: dict, tol_curve: float, span_tol: float) -> bool:
             and ch["curve_shift_sigma"] <= tol_curve and ch["span_change"] <= span_tol)
 
 
+def _not_physical(specimen: Specimen) -> str:
+    """'' when every ply's 3D stiffness is positive definite, else what is wrong."""
+    try:
+        for ply, C in zip(specimen.laminate.plies, ply_stiffness(specimen.laminate, 0.0)):
+            if not np.all(np.isfinite(C)) or np.linalg.eigvalsh(0.5 * (C + C.T)).min() <= 0:
+                return f"ply '{ply.material.name}': stiffness not positive definite"
+    except (ValueError, PhysicsError) as e:
+        return str(e)
+    return ""
+
+
 def _with_constants(specimen: Specimen, params: dict, material: str | None) -> Specimen:
     return replace(specimen, laminate=specimen.laminate.with_params(params, material))
 
@@ -213,6 +227,13 @@ def iterate_store(store: RunStore, an: Analysis, settings: AnalysisSettings = An
         # (back to the file's value, 40 % off, they moved the band: seed 0's round 4, G13)
         carried = {n: v for n, v in used.items() if n in prev_determined and n not in params}
         spec_k = _with_constants(specimen, {**carried, **params}, problem.material)
+        bad = _not_physical(spec_k)
+        if bad:
+            # e.g. G23 determined with the file's E2 kept: nu23 = E2 / 2 G23 - 1 out of range (seed 2)
+            entry["stopped"] = f"the identified constants give a non-physical ply ({bad}): the picks stay those " \
+                               "of the previous round"
+            rounds.append(entry)
+            break
         notes: list[str] = []
         wfeat, curves, arrivals, _extra, winfo = wave_features(records, rig, spec_k, settings, notes)
         old = cur.features.get("waves", [])
