@@ -16,12 +16,12 @@ predicted shapes and the echoes of other directions are still off. So:
      with (the file's in round 1). The picks then reproduce their own model: stop, no
      re-pick (``constants_shift_std`` in the round's entry);
    - the curves (``curve_changes``): after the re-pick, every new point within the previous
-     curve's frequency span against the previous curve interpolated (linear in frequency)
+     curve's frequency span against the previous curve interpolated (a cubic spline)
      at its frequency, and every previous point within the new span against the new curve,
      |change| / sqrt(sigma_new^2 + sigma_old^2); stop when the largest is at most
      ``TOL_CURVE``, no curve (mode, direction) appeared or vanished, and each curve's span
-     changed by at most ``SPAN_TOL`` of itself at either end (points added or lost only
-     where the span changed count);
+     ends moved by at most ``SPAN_TOL`` of its mean point spacing (points added or lost
+     only where the span changed count);
 
    or after ``max_iter`` rounds, or when the identification cannot determine the constants
    (insufficient data, or no constant with a relative std below ``MAX_REL_STD``): the picks
@@ -52,7 +52,7 @@ from ..store import RunStore
 from .analysis import Analysis, AnalysisSettings, wave_features
 from .identification.estimation import problem_from_features, run as identify
 
-__all__ = ["iterate_store", "pick_changes", "curve_changes", "MAX_ITER", "TOL_SIGMA", "TOL_STD", "TOL_CURVE",
+__all__ = ["iterate_store", "pick_changes", "curve_changes", "curves_converged", "MAX_ITER", "TOL_SIGMA", "TOL_STD", "TOL_CURVE",
            "SPAN_TOL", "MAX_REL_STD"]
 
 MAX_ITER = 4
@@ -62,7 +62,10 @@ TOL_SIGMA = 0.3          # pick_changes' old point-identity tolerance (recorded,
 # std even when the model no longer moves (session 29, seed 0: 0.53-0.55 std in rounds 2-4)
 TOL_STD = 1.0
 TOL_CURVE = 1.0          # curves: largest |change| / sqrt(s_new^2 + s_old^2) of a fixed point
-SPAN_TOL = 0.05          # curves: each end of the span may move by this fraction of the span
+# curves: each end of the span may move by this fraction of the previous curve's mean point
+# spacing (the points' frequencies follow the nominal: seed 0's ends moved 0.1-0.3 spacing a
+# round; a point beyond an end by more than half a spacing is a point the curve gained or lost)
+SPAN_TOL = 0.5
 MAX_REL_STD = 0.2
 
 
@@ -102,12 +105,12 @@ def _curves(ws) -> dict:
 
 
 def _interp(x, xp, yp):
-    """The curve through (xp, yp) at x: a natural cubic spline from 3 points (a few A0 points
-    around the group velocity's maximum: linear interpolation there is off by about one
-    sigma, session 29 seed 0, 36 kHz apart near 130 kHz), linear below."""
+    """The curve through (xp, yp) at x: a not-a-knot cubic spline from 3 points (exact on a
+    cubic: a few A0 points around the group velocity's maximum, where linear interpolation is
+    off by about one sigma, session 29 seed 0, 36 kHz apart near 130 kHz), linear below."""
     x = np.clip(x, xp[0], xp[-1])
     if xp.size >= 3 and np.all(np.diff(xp) > 0):
-        return CubicSpline(xp, yp, bc_type="natural")(x)
+        return CubicSpline(xp, yp)(x)
     return np.interp(x, xp, yp)
 
 
@@ -126,10 +129,10 @@ def _against(f, v, s, ref, rel_tol) -> tuple[float, int, int]:
 def curve_changes(old: Sequence[dict], new: Sequence[dict], rel_tol: float = 0.005) -> dict:
     """How the wave curves ``new`` differ from ``old`` as curves (rule in the module docstring):
     ``curve_shift_sigma`` (largest |dv| / sqrt(s_new^2 + s_old^2) over the points of either
-    curve inside the other's span, the other interpolated linearly in frequency),
+    curve inside the other's span, the other interpolated by ``_interp``),
     ``compared`` points, ``span_added`` / ``span_lost`` (points outside the other curve's
-    span), ``span_change`` (largest move of a span end / the old span, 0 for a one-point
-    curve that stayed within ``rel_tol``), ``curves_added`` / ``curves_lost``."""
+    span), ``span_change`` (largest move of a span end / the old curve's mean point spacing,
+    a tenth of its frequency for a one-point curve), ``curves_added`` / ``curves_lost``."""
     a, b = _curves(old), _curves(new)
     out = {"curve_shift_sigma": 0.0, "compared": 0, "span_added": 0, "span_lost": 0, "span_change": 0.0,
            "curves_added": len(set(b) - set(a)), "curves_lost": len(set(a) - set(b))}
@@ -140,15 +143,18 @@ def curve_changes(old: Sequence[dict], new: Sequence[dict], rel_tol: float = 0.0
             continue
         z1, n1, add = _against(fb, vb, sb, a[key], rel_tol)
         z2, n2, lost = _against(fa, va, sa, b[key], rel_tol)
-        span = max(fa[-1] - fa[0], rel_tol * fa[0])
+        spacing = (fa[-1] - fa[0]) / (fa.size - 1) if fa.size > 1 and fa[-1] > fa[0] else 0.1 * fa[0]
         moved = max(abs(fb[0] - fa[0]), abs(fb[-1] - fa[-1]))
         out.update(curve_shift_sigma=max(out["curve_shift_sigma"], z1, z2), compared=out["compared"] + n1 + n2,
                    span_added=out["span_added"] + add, span_lost=out["span_lost"] + lost,
-                   span_change=max(out["span_change"], 0.0 if moved <= rel_tol * fa[0] else float(moved / span)))
+                   span_change=max(out["span_change"], 0.0 if moved <= rel_tol * fa[0] else float(moved / spacing)))
     return out
 
 
-def _curves_fixed(ch: dict, tol_curve: float, span_tol: float) -> bool:
+def curves_converged(ch: dict, tol_curve: float | None = None, span_tol: float | None = None) -> bool:
+    """The curves' stopping rule on ``curve_changes``' output (module docstring)."""
+    tol_curve = TOL_CURVE if tol_curve is None else tol_curve
+    span_tol = SPAN_TOL if span_tol is None else span_tol
     return (ch["curves_added"] == ch["curves_lost"] == 0 and ch["compared"] > 0
             and ch["curve_shift_sigma"] <= tol_curve and ch["span_change"] <= span_tol)
 
@@ -243,7 +249,7 @@ def iterate_store(store: RunStore, an: Analysis, settings: AnalysisSettings = An
         rounds.append(entry)
         if progress:
             progress(f"pick <-> identify round {k}: constants moved {entry['constants_shift_std']:.2g} std; curves "
-                     f"moved {cc['curve_shift_sigma']:.2g} sigma, span {100 * cc['span_change']:.0f} %")
+                     f"moved {cc['curve_shift_sigma']:.2g} sigma, span ends {cc['span_change']:.2g} spacing")
         if not wfeat:
             entry["stopped"] = "the re-analysis with the identified constants found no curve: previous picks kept"
             break
@@ -255,9 +261,9 @@ def iterate_store(store: RunStore, an: Analysis, settings: AnalysisSettings = An
                        winfo.get("dropped", {}), cur.no_velocity)
         used = {**used, **params}
         prev_determined |= set(params)
-        if tol_curve >= 0 and _curves_fixed(cc, tol_curve, SPAN_TOL):
+        if tol_curve >= 0 and curves_converged(cc, tol_curve):
             converged = (f"the curves moved by at most {cc['curve_shift_sigma']:.2g} sigma and their spans by "
-                         f"{100 * cc['span_change']:.0f} %")
+                         f"{cc['span_change']:.2g} point spacing")
             break
     line = (f"pick <-> identify: converged after {len(rounds)} round(s): {converged}" if converged else
             f"pick <-> identify: {len(rounds)} round(s), " +
