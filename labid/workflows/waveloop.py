@@ -234,8 +234,14 @@ def iterate_store(store: RunStore, an: Analysis, settings: AnalysisSettings = An
         carried = {n: v for n, v in used.items() if n in prev_determined and n not in params}
         spec_k = _with_constants(specimen, {**carried, **params}, problem.material)
         bad = _not_physical(spec_k)
+        if bad and carried:
+            # the carried constants with this round's may make no physical ply (seed 2: G23 2.27 GPa
+            # with the file's E2 9 GPa is nu23 0.99, physical only with the file's E1): this
+            # round's constants alone, as before session 29
+            spec_k = _with_constants(specimen, params, problem.material)
+            bad = _not_physical(spec_k)
+            entry["carried_dropped"] = sorted(carried)
         if bad:
-            # e.g. G23 determined with the file's E2 kept: nu23 = E2 / 2 G23 - 1 out of range (seed 2)
             entry["stopped"] = f"the identified constants give a non-physical ply ({bad}): the picks stay those " \
                                "of the previous round"
             rounds.append(entry)
@@ -259,8 +265,8 @@ def iterate_store(store: RunStore, an: Analysis, settings: AnalysisSettings = An
         cur = Analysis(feats, cur.spectrum, cur.peaks, curves, arrivals,
                        an.notes + [f"after identification (round {k}): {n}" for n in notes], cur.wave_band_hz,
                        winfo.get("dropped", {}), cur.no_velocity)
-        used = {**used, **params}
-        prev_determined |= set(params)
+        used = _file_constants(spec_k, problem.material)       # what the new picks were made with
+        prev_determined = set(params) | (set() if "carried_dropped" in entry else prev_determined)
         if tol_curve >= 0 and curves_converged(cc, tol_curve):
             converged = (f"the curves moved by at most {cc['curve_shift_sigma']:.2g} sigma and their spans by "
                          f"{cc['span_change']:.2g} point spacing")
