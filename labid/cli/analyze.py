@@ -44,7 +44,8 @@ def register(sub) -> None:
                         "that mode left in this run's records is measured at the far sensor and removed")
     p.add_argument("--iterate", type=int, nargs="?", const=4, default=0, metavar="N",
                    help="pick <-> identify: identify the constants, redo the wave picks with them, until "
-                        "the picks and the constants stop moving (at most N rounds, default 4); recorded in analysis.iterations")
+                        "the picks and the constants stop moving (at most N rounds, default 4); recorded in "
+                        "analysis.iterations")
     p.add_argument("--iterate-params", default=None, metavar="P1,P2,..",
                    help="the constants identified in each round (default: identify's choice)")
     add_json_option(p)
