@@ -56,7 +56,7 @@ def align_channel(setup) -> str | None:
     itself when the record is triggered on a wave sensor: its threshold crossing is what jitters),
     else the sensor nearest the source (the largest, least dispersed packet: the sharpest
     correlation). ``setup``: an ``engine.wavefeatures.picks.WaveSetup``."""
-    if setup.force_channel is not None or not setup.sensors:
+    if setup is None or setup.force_channel is not None or not setup.sensors:
         return None
     near = min(setup.sensors, key=lambda s: s.distance_m)
     if setup.trigger_distance_m is not None:
