@@ -42,10 +42,12 @@ def combine_shots(curves: list[waves.GroupVelocity], floor: np.ndarray | None = 
 MAX_CURVES = 12     # shots beyond this are averaged in groups (bench/RESULTS.md, issue 24: cost)
 
 #: a lag is applied only where the normalised correlation of the shot's reference record with
-#: the first shot's peaks at least this high: two records of one packet with independent noise
-#: at energy SNR S peak at ~S / (1 + S); white noise alone over N samples at ~sqrt(2 ln(2 L) / N)
-#: for L lags searched (0.06 for 4096 samples and +-512 lags), so 0.3 is 5 x that: a shot whose
-#: record is noise (a missed packet) keeps its trigger's time base
+#: the first shot's peaks at least this high, and at least twice white noise's expected peak
+#: sqrt(2 ln(2 L + 1) / N_eff) over the 2 L + 1 lags searched (N_eff = 2 x band x record length,
+#: the band's degrees of freedom: 0.19 for 4096 samples, +-256 lags and 80 kHz of 2 MHz): two
+#: records of one packet with independent noise at energy SNR S peak at ~S / (1 + S) (the face
+#: breaks of bench rig cfrp_pencil_2dir_s0: 0.997 or more), so a shot whose reference record is
+#: noise (a missed packet) keeps its trigger's time base
 MIN_CORR = 0.3
 
 
@@ -86,7 +88,7 @@ def shot_lags(shots: Sequence[Mapping[str, np.ndarray]], ref: str, band: tuple[f
     and does not move with the trigger, held the whole record's correlation near lag 0 (4.6
     samples for 6 on bench rig cfrp_pencil_2dir_s0's trigger sensor, 0.1 for 6 on the other
     direction's; issue 24, session 29). Returns (lags, the correlations' normalised peaks);
-    a lag whose peak is below ``min_corr`` is 0."""
+    a lag whose peak is below ``min_corr`` or twice noise's (``MIN_CORR``) is 0."""
     x0 = np.asarray(shots[0][ref], float)
     n = x0.size
     max_lag = n // 16 if max_lag is None else int(max_lag)
@@ -102,6 +104,8 @@ def shot_lags(shots: Sequence[Mapping[str, np.ndarray]], ref: str, band: tuple[f
         return X, float(np.sum(np.abs(X[1:]) ** 2))
 
     X0, e0 = spectrum(x0)
+    n_eff = 2.0 * n / nfft * float(np.sum(w ** 2))
+    floor = max(min_corr, 2.0 * np.sqrt(2.0 * np.log(2 * max_lag + 1) / max(n_eff, 1.0)))
     lags, rho = np.zeros(len(shots)), np.ones(len(shots))
     for j in range(1, len(shots)):
         Xj, ej = spectrum(shots[j][ref])
@@ -109,7 +113,7 @@ def shot_lags(shots: Sequence[Mapping[str, np.ndarray]], ref: str, band: tuple[f
         c = np.concatenate([c[nfft - max_lag:], c[:max_lag + 1]])       # k = -max_lag .. max_lag
         i = int(np.argmax(c))
         rho[j] = 0.5 * c[i] * nfft / np.sqrt(e0 * ej) if e0 > 0 and ej > 0 else 0.0   # Parseval, one-sided
-        if not rho[j] >= min_corr:
+        if not rho[j] >= floor:
             continue
         frac = 0.0
         if 0 < i < c.size - 1:
