@@ -44,9 +44,9 @@ MAX_CURVES = 12     # shots beyond this are averaged in groups (bench/RESULTS.md
 #: a lag is applied only where the normalised correlation of the shot's reference record with
 #: the first shot's peaks at least this high, and at least twice white noise's expected peak
 #: sqrt(2 ln(2 L + 1) / N_eff) over the 2 L + 1 lags searched (N_eff = 2 x band x record length,
-#: the band's degrees of freedom: 0.19 for 4096 samples, +-256 lags and 80 kHz of 2 MHz): two
+#: the band's degrees of freedom: 0.22 for 4096 samples, +-1024 lags and 80 kHz of 2 MHz): two
 #: records of one packet with independent noise at energy SNR S peak at ~S / (1 + S) (the face
-#: breaks of bench rig cfrp_pencil_2dir_s0: 0.997 or more), so a shot whose reference record is
+#: breaks of bench rig cfrp_pencil_2dir_s0: 0.943 or more), so a shot whose reference record is
 #: noise (a missed packet) keeps its trigger's time base
 MIN_CORR = 0.3
 
@@ -83,14 +83,14 @@ def shot_lags(shots: Sequence[Mapping[str, np.ndarray]], ref: str, band: tuple[f
     """Per shot, the lag (samples, sub-sample) of channel ``ref`` behind shot 0's: the peak of
     their cross-correlation within +-``max_lag`` samples (default a quarter of the record: a
     stronger break crosses the trigger's level on an earlier, weaker packet, 93-176 us early on 3
-    of bench rig cfrp_pencil_2dir_s0's 72 soft-plate breaks, the others within 17 us),
+    of bench rig cfrp_pencil_2dir_s0's 72 soft-plate breaks, the others within 16 us),
     refined by a parabola through the peak and its neighbours. The correlation is taken in
     ``band`` (cycles / sample: the analysis band, ``_band_weight``) of records tapered over their
     first and last tenth: a pencil break's quasi-static strain, which runs past the record's end
     and does not move with the trigger, held the whole record's correlation near lag 0 (4.6
     samples for 6 on bench rig cfrp_pencil_2dir_s0's trigger sensor, 0.1 for 6 on the other
     direction's; issue 24, session 29). Returns (lags, the correlations' normalised peaks);
-    a lag whose peak is below ``min_corr`` or twice noise's (``MIN_CORR``) is 0."""
+    a lag whose peak is below ``min_corr`` or twice noise's (``MIN_CORR``) is NaN (not known)."""
     x0 = np.asarray(shots[0][ref], float)
     n = x0.size
     max_lag = n // 4 if max_lag is None else int(max_lag)
@@ -109,6 +109,7 @@ def shot_lags(shots: Sequence[Mapping[str, np.ndarray]], ref: str, band: tuple[f
     n_eff = 2.0 * n / nfft * float(np.sum(w ** 2))
     floor = max(min_corr, 2.0 * np.sqrt(2.0 * np.log(2 * max_lag + 1) / max(n_eff, 1.0)))
     lags, rho = np.zeros(len(shots)), np.ones(len(shots))
+    lags[1:] = np.nan
     for j in range(1, len(shots)):
         Xj, ej = spectrum(shots[j][ref])
         c = np.fft.irfft(np.conj(X0) * Xj, nfft)                      # c[k] = sum x0[i] xj[i + k]
@@ -128,18 +129,23 @@ def shot_lags(shots: Sequence[Mapping[str, np.ndarray]], ref: str, band: tuple[f
 
 def align_shots(shots: Sequence[Mapping[str, np.ndarray]], ref: str | None, band: tuple[float, float] | None = None,
                 max_lag: int | None = None) -> tuple[list[dict], np.ndarray]:
-    """The shots on shot 0's time base: each shot's lag measured on ``ref`` (``shot_lags``) and
-    ALL its channels advanced by it, by a linear phase ramp on the spectrum (a sub-sample shift),
-    so the delays between channels, the measurement, are untouched. The record is padded with its
+    """The shots on one time base, the median shot's: each shot's lag measured on ``ref``
+    (``shot_lags``), less the median lag (a first shot whose trigger walked, 3 of 72 soft-plate
+    breaks, does not move the others by 176 us), and ALL its channels advanced by it, by a linear
+    phase ramp on the spectrum (a sub-sample shift), so the delays between channels, the
+    measurement, are untouched; a shot whose lag is not known is left as recorded. The record is padded with its
     end value, then its first (a pencil break's quasi-static strain does not start or end at 0):
     the samples shifted in repeat the record's edge, and the wrap's step lies half a record away.
-    ``ref`` None or absent: the shots as they are (lags 0). Returns (shots, lags in samples)."""
+    ``ref`` None or absent: the shots as they are (lags 0). Returns (shots, the shifts applied,
+    samples; NaN: not known, not shifted)."""
     if ref is None or len(shots) < 2 or ref not in shots[0]:
         return [dict(s) for s in shots], np.zeros(len(shots))
     lags, _ = shot_lags(shots, ref, band, max_lag)
-    out = [dict(shots[0])]
-    for s, lag in zip(shots[1:], lags[1:]):
-        if lag == 0.0:
+    known = np.isfinite(lags)
+    lags = np.where(known, lags - np.median(lags[known]), np.nan)
+    out = []
+    for s, lag in zip(shots, lags):
+        if not np.isfinite(lag) or lag == 0.0:
             out.append(dict(s))
             continue
         n = next(iter(s.values())).size
@@ -182,8 +188,11 @@ def stack_shots(shots: Sequence[Mapping[str, np.ndarray]], max_curves: int = MAX
     out = [{ch: np.mean([shots[j][ch] for j in range(i * size, (i + 1) * size)], axis=0) for ch in shots[0]}
            for i in range(k)]
     left = n - k * size
-    how = (f"aligned on {ref} (lags {np.min(lags):+.2f} .. {np.max(lags):+.2f} samples)" if ref is not None
-           else "aligned on their trigger")
+    ok = np.isfinite(lags)
+    how = "aligned on their trigger"
+    if ref is not None and ok.any():
+        how = f"aligned on {ref}, shifted {np.min(lags[ok]):+.2f} .. {np.max(lags[ok]):+.2f} samples"
+        how += f", {int((~ok).sum())} shot(s) as recorded (no clear correlation)" if not ok.all() else ""
     return out, (f"{n} wave shots averaged in {k} groups of {size} ({how}); curves and their "
                  "scatter from the groups"
                  + (f"; the last {left} shot(s), fewer than a group, not used" if left else ""))
