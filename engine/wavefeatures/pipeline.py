@@ -334,7 +334,8 @@ def _sweep_term(d: Direction, wl: waves.Wavelet, shots, combined: dict) -> dict:
     alt_wl = waves.Wavelet(wl.bandwidth, c_alt)
     if len(shots) > 1:
         ref = align_channel(d.setup)     # on one time base first, as stack_shots
-        aligned = align_shots(shots, ref, (d.freqs[0], d.freqs[-1]) / np.float64(d.setup.fs_hz))[0] if ref else shots
+        band = (d.freqs[0] / d.setup.fs_hz, d.freqs[-1] / d.setup.fs_hz) if ref else None
+        aligned = align_shots(shots, ref, band)[0]
         mean = [{ch: np.mean([s[ch] for s in aligned], axis=0) for ch in shots[0]}]
         kept, d.memo = d.memo, {}        # the memo holds the shots' picks, by shot index: not the mean's
         try:
