@@ -65,7 +65,7 @@ from .band import Band, analysis_band, default_wavelet, signal_band, snr_band, w
 from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of, locate_onset,
                     noise_rms, nominal_cg, sensor_delay)
 from . import crosstalk, memo, merge
-from .shots import MAX_CURVES, combine_shots, stack_shots
+from .shots import MAX_CURVES, align_channel, align_shots, combine_shots, stack_shots
 from .survey import survey_direction, survey_onsets
 
 __all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet", "stack_shots",
@@ -333,7 +333,10 @@ def _sweep_term(d: Direction, wl: waves.Wavelet, shots, combined: dict) -> dict:
     c_alt = wl.center / 1.5 if wl.center / 1.5 >= 2 / 3 else wl.center * 1.5
     alt_wl = waves.Wavelet(wl.bandwidth, c_alt)
     if len(shots) > 1:
-        mean = [{ch: np.mean([s[ch] for s in shots], axis=0) for ch in shots[0]}]
+        ref = align_channel(d.setup)     # on one time base first, as stack_shots
+        band = (d.freqs[0] / d.setup.fs_hz, d.freqs[-1] / d.setup.fs_hz) if ref else None
+        aligned = align_shots(shots, ref, band)[0]
+        mean = [{ch: np.mean([s[ch] for s in aligned], axis=0) for ch in shots[0]}]
         kept, d.memo = d.memo, {}        # the memo holds the shots' picks, by shot index: not the mean's
         try:
             per_shot, _, _ = _measure(d, alt_wl, mean)
@@ -383,7 +386,8 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
     ``setup`` and the source channel); ``freqs``: the analysis grid (``analysis_band``).
     """
     notes: list[str] = []
-    shots, stack_note = stack_shots(shots)
+    shots, stack_note = stack_shots(shots, ref=align_channel(setup),
+                                    band=(freqs[0] / setup.fs_hz, freqs[-1] / setup.fs_hz))
     if stack_note:
         notes.append(stack_note)
     sensors, shots, pair_notes = _pairs(setup.sensors, shots)
