@@ -21,7 +21,7 @@ from scipy import stats
 from .. import waves
 
 __all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "run_resolution", "off_curve", "left_out",
-           "scattered", "odd_one", "names", "misfit_scale"]
+           "scattered", "odd_one", "names", "misfit_scale", "birge_chi2"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
 LOO_SIGMAS, LOO_REL = 6.0, 0.20   # left_out: a point this many sigmas AND this far (relative) off the others' curve
@@ -323,13 +323,26 @@ def misfit_scale(f_hz, v, sigma, label: str = "the curve", degree: int = 3, octa
     deterministic biases of a few 0.1 % alternating along the curve (issue 24, session 29: S0
     along 0 deg, 36 / 36 points within 1 % but |err| / sigma rms 3.1). Fewer than 4 points: 1.
     Units: any, consistent (f > 0)."""
+    chi2, dof, n = birge_chi2(f_hz, v, sigma, degree, octaves, min_points)
+    if n < 4 or chi2 <= stats.chi2.ppf(level, dof) or chi2 <= dof:
+        return 1.0, ""
+    scale = float(np.sqrt(chi2 / dof))
+    return scale, (f"{label}: its {n} points scatter about a smooth curve by {scale:.2g} x their sigmas "
+                   f"(chi2 / dof = {chi2:.3g} / {dof}): sigmas scaled by {scale:.2g} (a bias the "
+                   "shot-to-shot scatter does not see)")
+
+
+def birge_chi2(f_hz, v, sigma, degree: int = 3, octaves: float = 1.0, min_points: int = 7
+               ) -> tuple[float, int, int]:
+    """(chi2, degrees of freedom, points used) of a curve's points about ``misfit_scale``'s smooth
+    curve (piecewise polynomial in ln f, weights 1/sigma); (0, 0, n) with fewer than 4 points."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     ok = np.isfinite(f) & np.isfinite(v) & np.isfinite(s) & (s > 0) & (f > 0)
     order = np.argsort(f[ok])
     f, v, s = f[ok][order], v[ok][order], s[ok][order]
     n = f.size
     if n < 4:
-        return 1.0, ""
+        return 0.0, 0, n
     k = max(1, min(int(np.ceil(np.log2(f[-1] / f[0]) / octaves - 1e-9)), n // min_points))
     chi2, dof = 0.0, 0
     for idx in np.array_split(np.arange(n), k):
@@ -338,9 +351,4 @@ def misfit_scale(f_hz, v, sigma, label: str = "the curve", degree: int = 3, octa
         c = np.polynomial.polynomial.polyfit(x, v[idx], deg, w=1.0 / s[idx])
         chi2 += float(np.sum(((v[idx] - np.polynomial.polynomial.polyval(x, c)) / s[idx]) ** 2))
         dof += idx.size - deg - 1
-    if chi2 <= stats.chi2.ppf(level, dof):
-        return 1.0, ""
-    scale = float(np.sqrt(chi2 / dof))
-    return scale, (f"{label}: its {n} points scatter about a smooth curve by {scale:.2g} x their sigmas "
-                   f"(chi2 / dof = {chi2:.3g} / {dof}): sigmas scaled by {scale:.2g} (a bias the "
-                   "shot-to-shot scatter does not see)")
+    return chi2, dof, n
