@@ -309,7 +309,7 @@ def misfit_scale(f_hz, v, sigma, label: str = "the curve", degree: int = 3, octa
     note ('' when 1).
 
     The smooth curve: a polynomial in ln f of degree min(``degree``, m - 3) (weights 1/sigma;
-    at least 2 degrees of freedom) on each of k pieces of the curve, consecutive and of equal
+    at least 2 degrees of freedom; at least a parabola) on each of k pieces of the curve, consecutive and of equal
     point counts, k = ceil(the curve's span in octaves / ``octaves``) but at most n //
     ``min_points`` (at least 1). Why pieces: A0's group velocity over 47-306 kHz (2.7 octaves)
     is not a cubic in ln f to its 0.002-0.05 % sigmas (the true plate's curve misses it by
@@ -321,10 +321,10 @@ def misfit_scale(f_hz, v, sigma, label: str = "the curve", degree: int = 3, octa
     "Averaging procedures"). A sigma is never shrunk. Why at all: at high SNR the picks' sigmas
     (shot-to-shot scatter + the wavelet sweep term) see only noise, while the points carry
     deterministic biases of a few 0.1 % alternating along the curve (issue 24, session 29: S0
-    along 0 deg, 36 / 36 points within 1 % but |err| / sigma rms 3.1). Fewer than 4 points: 1.
+    along 0 deg, 36 / 36 points within 1 % but |err| / sigma rms 3.1). Fewer than 5 points: 1.
     Units: any, consistent (f > 0)."""
     chi2, dof, n = birge_chi2(f_hz, v, sigma, degree, octaves, min_points)
-    if n < 4 or chi2 <= stats.chi2.ppf(level, dof) or chi2 <= dof:
+    if dof < 1 or chi2 <= stats.chi2.ppf(level, dof) or chi2 <= dof:
         return 1.0, ""
     scale = float(np.sqrt(chi2 / dof))
     return scale, (f"{label}: its {n} points scatter about a smooth curve by {scale:.2g} x their sigmas "
@@ -341,7 +341,7 @@ def birge_chi2(f_hz, v, sigma, degree: int = 3, octaves: float = 1.0, min_points
     order = np.argsort(f[ok])
     f, v, s = f[ok][order], v[ok][order], s[ok][order]
     n = f.size
-    if n < 4:
+    if n < 5:
         return 0.0, 0, n
     k = max(1, min(int(np.ceil(np.log2(f[-1] / f[0]) / octaves - 1e-9)), n // min_points))
     chi2, dof = 0.0, 0
