@@ -309,12 +309,12 @@ def misfit_scale(f_hz, v, sigma, label: str = "the curve", degree: int = 3, octa
     note ('' when 1).
 
     The smooth curve: a polynomial in ln f of degree min(``degree``, m - 3) (weights 1/sigma;
-    at least 2 degrees of freedom; at least a parabola) on each of k pieces of the curve, consecutive and of equal
-    point counts, k = ceil(the curve's span in octaves / ``octaves``) but at most n //
-    ``min_points`` (at least 1). Why pieces: A0's group velocity over 47-306 kHz (2.7 octaves)
-    is not a cubic in ln f to its 0.002-0.05 % sigmas (the true plate's curve misses it by
-    4-6 x those sigmas, 1-2 % at the low end); over one octave it is (0.01-0.15 x the sigmas;
-    bench/RESULTS.md, issue 24, session 29, branch h65). The chi2 and degrees of freedom of the
+    at least 2 degrees of freedom, at least a parabola: 5 points) on each of k pieces of the
+    curve, consecutive and of equal point counts, k = ceil(the curve's span in octaves /
+    ``octaves``) but at most n // ``min_points`` (at least 1). Why pieces: A0's group velocity
+    over 47-306 kHz (2.7 octaves) is not a cubic in ln f to its 0.002-0.2 % sigmas (the true
+    plate's curve misses it by 4.6-6.2 x those sigmas, 1-2 % at the low end); in pieces of an
+    octave it is (0.02-0.51 x; bench/RESULTS.md, issue 24, session 29, branch h65). The chi2 and degrees of freedom of the
     pieces are summed; when chi2 exceeds the chi2(dof) ``level`` quantile the scale is
     sqrt(chi2 / dof): the Birge ratio (R. T. Birge, Phys. Rev. 40, 207 (1932)), the scale factor
     of the Particle Data Group's averages (PDG, Review of Particle Physics, Introduction,
@@ -335,7 +335,9 @@ def misfit_scale(f_hz, v, sigma, label: str = "the curve", degree: int = 3, octa
 def birge_chi2(f_hz, v, sigma, degree: int = 3, octaves: float = 1.0, min_points: int = 7
                ) -> tuple[float, int, int]:
     """(chi2, degrees of freedom, points used) of a curve's points about ``misfit_scale``'s smooth
-    curve (piecewise polynomial in ln f, weights 1/sigma); (0, 0, n) with fewer than 4 points."""
+    curve (piecewise polynomial in ln f, weights 1/sigma); (0, 0, n) with fewer than 5 points
+    (4 leave a line in ln f, which A0's saturation misses: the demo's 4-point A0, 62-181 kHz,
+    1580-1686 m/s, lay 5 x its 0.3 % sigmas off a line).
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     ok = np.isfinite(f) & np.isfinite(v) & np.isfinite(s) & (s > 0) & (f > 0)
     order = np.argsort(f[ok])
