@@ -337,7 +337,7 @@ def birge_chi2(f_hz, v, sigma, degree: int = 3, octaves: float = 1.0, min_points
     """(chi2, degrees of freedom, points used) of a curve's points about ``misfit_scale``'s smooth
     curve (piecewise polynomial in ln f, weights 1/sigma); (0, 0, n) with fewer than 5 points
     (4 leave a line in ln f, which A0's saturation misses: the demo's 4-point A0, 62-181 kHz,
-    1580-1686 m/s, lay 5 x its 0.3 % sigmas off a line).
+    1580-1686 m/s, lay 5 x its 0.3 % sigmas off a line)."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     ok = np.isfinite(f) & np.isfinite(v) & np.isfinite(s) & (s > 0) & (f > 0)
     order = np.argsort(f[ok])
