@@ -16,11 +16,12 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 import numpy as np
+from scipy import stats
 
 from .. import waves
 
 __all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "run_resolution", "off_curve", "left_out",
-           "scattered", "odd_one", "names"]
+           "scattered", "odd_one", "names", "misfit_scale", "birge_chi2"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
 LOO_SIGMAS, LOO_REL = 6.0, 0.20   # left_out: a point this many sigmas AND this far (relative) off the others' curve
@@ -299,3 +300,57 @@ def names(which, mask) -> str:
     for i in np.flatnonzero(mask):
         n[which[i].name] = n.get(which[i].name, 0) + 1
     return ", ".join(f"{k} ({v})" for k, v in n.items())
+
+
+def misfit_scale(f_hz, v, sigma, label: str = "the curve", degree: int = 3, octaves: float = 1.0,
+                 min_points: int = 7, level: float = 0.95) -> tuple[float, str]:
+    """The factor (>= 1) the sigmas of a group-velocity curve are multiplied by when its points
+    scatter about the smooth curve through them more than their sigmas allow, and a console
+    note ('' when 1).
+
+    The smooth curve: a polynomial in ln f of degree min(``degree``, m - 3) (weights 1/sigma;
+    at least 2 degrees of freedom, at least a parabola: 5 points) on each of k pieces of the
+    curve, consecutive and of equal point counts, k = ceil(the curve's span in octaves /
+    ``octaves``) but at most n // ``min_points`` (at least 1). Why pieces: A0's group velocity
+    over 47-306 kHz (2.7 octaves) is not a cubic in ln f to its 0.002-0.2 % sigmas (the true
+    plate's curve misses it by 4.6-6.2 x those sigmas, 1-2 % at the low end); in pieces of an
+    octave it is (0.02-0.51 x; bench/RESULTS.md, issue 24, session 29, branch h65). The chi2 and degrees of freedom of the
+    pieces are summed; when chi2 exceeds the chi2(dof) ``level`` quantile the scale is
+    sqrt(chi2 / dof): the Birge ratio (R. T. Birge, Phys. Rev. 40, 207 (1932)), the scale factor
+    of the Particle Data Group's averages (PDG, Review of Particle Physics, Introduction,
+    "Averaging procedures"). A sigma is never shrunk. Why at all: at high SNR the picks' sigmas
+    (shot-to-shot scatter + the wavelet sweep term) see only noise, while the points carry
+    deterministic biases of a few 0.1 % alternating along the curve (issue 24, session 29: S0
+    along 0 deg, 36 / 36 points within 1 % but |err| / sigma rms 3.1). Fewer than 5 points: 1.
+    Units: any, consistent (f > 0)."""
+    chi2, dof, n = birge_chi2(f_hz, v, sigma, degree, octaves, min_points)
+    if dof < 1 or chi2 <= stats.chi2.ppf(level, dof) or chi2 <= dof:
+        return 1.0, ""
+    scale = float(np.sqrt(chi2 / dof))
+    return scale, (f"{label}: its {n} points scatter about a smooth curve by {scale:.2g} x their sigmas "
+                   f"(chi2 / dof = {chi2:.3g} / {dof}): sigmas scaled by {scale:.2g} (a bias the "
+                   "shot-to-shot scatter does not see)")
+
+
+def birge_chi2(f_hz, v, sigma, degree: int = 3, octaves: float = 1.0, min_points: int = 7
+               ) -> tuple[float, int, int]:
+    """(chi2, degrees of freedom, points used) of a curve's points about ``misfit_scale``'s smooth
+    curve (piecewise polynomial in ln f, weights 1/sigma); (0, 0, n) with fewer than 5 points
+    (4 leave a line in ln f, which A0's saturation misses: the demo's 4-point A0, 62-181 kHz,
+    1580-1686 m/s, lay 5 x its 0.3 % sigmas off a line)."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    ok = np.isfinite(f) & np.isfinite(v) & np.isfinite(s) & (s > 0) & (f > 0)
+    order = np.argsort(f[ok])
+    f, v, s = f[ok][order], v[ok][order], s[ok][order]
+    n = f.size
+    if n < 5:
+        return 0.0, 0, n
+    k = max(1, min(int(np.ceil(np.log2(f[-1] / f[0]) / octaves - 1e-9)), n // min_points))
+    chi2, dof = 0.0, 0
+    for idx in np.array_split(np.arange(n), k):
+        deg = min(degree, idx.size - 3)
+        x = np.log(f[idx] / f[idx[-1]])
+        c = np.polynomial.polynomial.polyfit(x, v[idx], deg, w=1.0 / s[idx])
+        chi2 += float(np.sum(((v[idx] - np.polynomial.polynomial.polyval(x, c)) / s[idx]) ** 2))
+        dof += idx.size - deg - 1
+    return chi2, dof, n

@@ -468,7 +468,10 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             if spread:
                 notes.append(f"{mode} along {direction:g} deg: {spread}; not reported")
                 continue
-            out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
+            k, line = merge.misfit_scale(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
+                                         f"{mode} along {direction:g} deg")    # sigmas honest about a bias
+            notes += [line] if line else []
+            out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], k * gv.sigma_m_s[ok],
                                  dict(counts[mode])))
             how = ("two sensors" if near is not None else
                    "source to sensor" if setup.force_channel is not None else "from the trigger time")

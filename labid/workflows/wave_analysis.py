@@ -155,6 +155,9 @@ def _merge_sweep(parts, notes: list[str], shots: dict | None = None):
                 drop[r] = drop.get(r, 0) + n
         F, V, S, N = waves_merge.merge_runs([(np.array(w["frequency_hz"]), np.array(w["group_velocity_m_s"]),
                                               np.array(w["sigma_m_s"])) for w in ws], runs_out=runs, dropped_out=drop)
+        k, line = waves_merge.misfit_scale(F, V, S, f"{mode} along {direction:g} deg (merged)")
+        S = k * S                           # the merged curve judged too (bursts' biases may disagree)
+        notes += [line] if line else []
         out.append({"mode": mode, "direction_deg": float(direction), "frequency_hz": [float(x) for x in F],
                     "group_velocity_m_s": [float(x) for x in V], "sigma_m_s": [float(x) for x in S],
                     "dropped": drop})
