@@ -35,7 +35,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE))
-from bench_unknown_plate import EDGE_BAND, records, reference, run_case  # noqa: E402
+from bench_unknown_plate import EDGE_BAND, records, run_case  # noqa: E402
 from bench_wave_seeds import _rig  # noqa: E402
 from engine.wavefeatures import pipeline as waves_pipeline  # noqa: E402
 from labid.workflows.analysis import AnalysisSettings, wave_features  # noqa: E402

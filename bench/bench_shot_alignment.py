@@ -118,7 +118,7 @@ def main(argv) -> None:
         rig = _rig("cfrp_pzt_sweep_2dir_far.toml", 1 / 0.6)
         recs = _recs("sweep_soft_0_80", lambda: records(rig, large, 80, 0, "independent"))
         for ch in ("exc", "x1"):
-            report(f"sweep_far_80 soft seed 0 (independent), triggered on exc", recs, ch, "x2", (40e3, 300e3), (),
+            report("sweep_far_80 soft seed 0 (independent), triggered on exc", recs, ch, "x2", (40e3, 300e3), (),
                    trigger_aligned=False, bursts=5)
     if "default" in pick:
         for n, scale, model in ((3, None, "simulated"), (100, 0.714, "simulated")):
