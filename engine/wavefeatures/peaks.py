@@ -68,13 +68,12 @@ def target_peaks(A: np.ndarray, t: np.ndarray, fs: float, a_lo: np.ndarray, a_hi
     return best, why
 
 
-def pick_widths(A: np.ndarray, t: np.ndarray, fs: float, tc: np.ndarray, st: np.ndarray, rows: np.ndarray,
-                xtalk: np.ndarray | None = None):
+def pick_widths(A: np.ndarray, t: np.ndarray, fs: float, tc: np.ndarray, st: np.ndarray, rows: np.ndarray):
     """At the picks ``tc`` (s) of ``rows``: how much wider than predicted (amplitude std ``st``, s)
     the packet is, from the curvature of log|W| (1 / (fs sqrt(-d2)), clipped to 1-3; 1 where it is
-    not curved or on the record's edge); |W| at the pick's sample; and the crosstalk bound's
-    maximum and largest step over the pick's 3 samples (None without ``xtalk``). The float
-    operations of the per-row loop they replace (``picks.arrivals_of``), element by element."""
+    not curved or on the record's edge), and |W| at the pick's sample. The float operations of
+    the per-row loop they replace (``picks.arrivals_of``), element by element. (The crosstalk's
+    level and slope are taken at the target's predicted time, ``judge.crosstalk_at``.)"""
     n = A.shape[1]
     kc = np.rint((tc - t[0]) * fs).astype(int)
     kk = np.clip(kc, 1, n - 2)
@@ -83,7 +82,4 @@ def pick_widths(A: np.ndarray, t: np.ndarray, fs: float, tc: np.ndarray, st: np.
         d2 = la - 2 * lb + lc
         w = np.clip(1.0 / (fs * np.sqrt(-d2.astype(float))) / st, 1.0, 3.0)
     widen = np.where((kc >= 1) & (kc < n - 1) & (d2 < 0), w, 1.0)
-    if xtalk is None:
-        return widen, A[rows, kk], None
-    x = xtalk[rows[:, None], kk[:, None] + np.arange(-1, 2)]
-    return widen, A[rows, kk], (x.max(axis=1), np.abs(np.diff(x, axis=1)).max(axis=1))
+    return widen, A[rows, kk]

@@ -356,7 +356,7 @@ def arrivals_of(d: Direction, x: np.ndarray, s: Sensor | None, mode: str, wl: wa
         onsets[rows] + c_src[rows] + p.delay_s[rows]) for p in pk if p is not target and p.model_w is not None}
     at = {int(i): j for j, i in enumerate(rows)}
     peaks_t = target.model_w.max(axis=1) if target.model_w is not None else np.zeros(nf)   # per row, at once
-    widens, a_at, _ = pick_widths(A, t, fs, arr.times_s[rows], target.spread_s[rows], rows)
+    widens, a_at = pick_widths(A, t, fs, arr.times_s[rows], target.spread_s[rows], rows)
     for i in range(nf):
         if reason[i]:
             valid[i], why[i] = False, reason[i]
