@@ -82,6 +82,13 @@ def reference(lam, direction: float, f: np.ndarray) -> dict:
     return {LABELS[j]: br.at(j, 2 * np.pi * np.asarray(f))[1] for j in range(3)}
 
 
+def curve_vs_truth(lam, w: dict):
+    """(f, v, sigma, true v) of a features curve ``w`` (Hz, m/s) against the true plate ``lam``."""
+    f = np.array(w["frequency_hz"])
+    return (f, np.array(w["group_velocity_m_s"]), np.array(w["sigma_m_s"]),
+            reference(lam, w["direction_deg"], f)[w["mode"]])
+
+
 def records(rig, spec, n, seed=0, model="simulated"):
     dev = SimulatedDevice(rig, spec, "wave", None, seed)
     d = rig.device("wave")
@@ -139,10 +146,7 @@ def run_case(name, rig, spec, n, scale, model="simulated", settings=AnalysisSett
             print("  note:", ln if ln.startswith("more shots") else ln[:160])
     rows = []
     for w in feats:
-        f = np.array(w["frequency_hz"])
-        v = np.array(w["group_velocity_m_s"])
-        s = np.array(w["sigma_m_s"])
-        ref = reference(true_lam, w["direction_deg"], f)[w["mode"]]
+        f, v, s, ref = curve_vs_truth(true_lam, w)
         e = v / ref - 1
         z = np.abs(v - ref) / s
         rows.append((w["mode"], w["direction_deg"], f.size, f.min(), f.max(), e, s / ref, z, f))

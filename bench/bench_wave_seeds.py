@@ -40,7 +40,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench._machine import machine  # noqa: E402
-from bench_unknown_plate import EDGE_BAND, HERE, records, reference  # noqa: E402
+from bench_unknown_plate import EDGE_BAND, HERE, curve_vs_truth, records, reference  # noqa: E402
 from labid.inputs.rig import rig_from_text  # noqa: E402
 from labid.inputs.specimen import load_specimen  # noqa: E402
 from labid.workflows import wave_analysis as analysis  # noqa: E402  (the wave part: its _merge_sweep hook)
@@ -115,10 +115,7 @@ def measure(case: str, seed: int, variant: str, fmax: float | None = None) -> di
         analysis._merge_sweep = merge_sweep
     points = []
     for w in feats:
-        f = np.array(w["frequency_hz"])
-        v = np.array(w["group_velocity_m_s"])
-        s = np.array(w["sigma_m_s"])
-        ref = reference(true_lam, w["direction_deg"], f)[w["mode"]]
+        f, v, s, ref = curve_vs_truth(true_lam, w)
         points += [{"mode": w["mode"], "direction_deg": w["direction_deg"], "f": float(a), "v": float(b),
                     "ref": float(r), "sigma": float(e), "err": float(b / r - 1), "z": float((b - r) / e)}
                    for a, b, e, r in zip(f, v, s, ref)]
