@@ -19,10 +19,10 @@ packets of a plate: a pencil's 400 kHz of the bench rigs is 0.2 x 2 MHz), each r
 lower quartile of |W| over time (edges cut) scaled to a std by the Rayleigh law of noise-only
 |W| (quartile = rms sqrt(ln 4/3)): a packet in under ~half a row's time leaves it near the
 noise. Where those rows are white (the median of the upper 8 within 20 % of the lower 8's; a
-row is good to ~6 % on 4096 samples) their median is white noise's std, and it replaces the
+row is good to ~8 % on 4096 samples) their median is white noise's std, and it replaces the
 time estimate when that one is over 1.2 x it (signal in the "wave-free" parts). Else (coloured
 noise: Yeum et al.'s records fall 20 dB over that band, eriknbd's 250 kHz file 1.3 x; or
-packets up there) the time estimate stands: a white level read above the band would be 10-16 x
+packets up there) the time estimate stands: a white level read above the band would be 11-330 x
 under Yeum's pre-trigger noise. Units: those of the record.
 """
 from __future__ import annotations
