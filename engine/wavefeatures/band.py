@@ -124,18 +124,19 @@ def source_band(laminate: Laminate, fs: float, source: SourceModel, level_db: fl
     return fmin, fmax, notes
 
 
-def snr_band(x: np.ndarray, noise: np.ndarray, fs_hz: float, snr_db: float = 20.0,
+def snr_band(x: np.ndarray, noise: np.ndarray | float, fs_hz: float, snr_db: float = 20.0,
              fmin_hz: float = 0.0, within: tuple[float, float] | None = None) -> tuple[float, float] | None:
     """The contiguous band around the best signal-to-noise frequency where the scalogram
     peak of ``x`` (cmor2-1, 80 log-spaced frequencies) stands ``snr_db`` above the
-    white-noise level of ``noise`` (the pre-trigger samples): the test ``arrival_times``
+    white-noise level of ``noise`` (its std: a number, ``noise.noise_level``'s, or noise-only
+    samples): the test ``arrival_times``
     applies to every pick, Hz; None when nothing is that far above the noise. ``within``:
     the band asked for (Hz); the best frequency is sought inside it (when the grid has
     any there), so a stronger but separate low-frequency swell does not take the band away
     (issue 24, session 28: a pencil's record at 60 cm peaked at 10-15 kHz, below a 20-350 kHz
     band that also stood 20 dB clear)."""
     x = np.asarray(x, float)
-    std = float(np.std(np.asarray(noise, float)))
+    std = _std(noise)
     if not std > 0:
         return None
     f = np.geomspace(max(fmin_hz, 8.0 * fs_hz / x.size), 0.45 * fs_hz, 80)
@@ -154,16 +155,28 @@ def snr_band(x: np.ndarray, noise: np.ndarray, fs_hz: float, snr_db: float = 20.
     return float(f[lo]), float(f[hi])
 
 
+def _std(noise: np.ndarray | float | None) -> float:
+    """A noise std given as a number, or as noise-only samples (their std); 0 when unknown."""
+    if noise is None:
+        return 0.0
+    if np.ndim(noise) == 0:
+        return float(noise)
+    return float(np.std(np.asarray(noise, float))) if np.size(noise) >= 16 else 0.0
+
+
 def analysis_band(laminate: Laminate, fs_hz: float, settings: WaveSettings = WaveSettings(),
                   force: np.ndarray | None = None, pretrigger: int = 0, *,
                   source: SourceModel | None = None, record: np.ndarray | None = None,
-                  noise: np.ndarray | None = None) -> Band:
+                  noise: np.ndarray | float | None = None) -> Band:
     """The analysis frequencies (Hz) and how they were chosen (module docstring, step 1).
 
     ``force``: the source force record (any unit) of the first shot, if recorded (a
     hammer's band stops where it falls 10 dB). ``record``: the direct packets of the far
-    sensor (its record from the first possible arrival on); ``noise``: its pre-trigger
-    samples. The grid must lie in the band the record holds: for a tone burst its
+    sensor (its record from the first possible arrival on); ``noise``: its noise std
+    (``noise.noise_level``; the pre-trigger's plain std, used before session 30, read the quasi-
+    static strain and coda of a pencil break that precede a sensor's trigger: 2.1-2.8 mV for
+    0.2 mV of noise per shot on bench rig cfrp_pencil_2dir_s0) or noise-only samples. The grid
+    must lie in the band the record holds: for a tone burst its
     -``band_db`` band; for a broadband source (pencil, hammer: a red spectrum) where it
     stays -``band_db`` above the noise (unchecked without noise). Raises WaveError when
     the band does not lie within (0, fs/2).
@@ -182,7 +195,7 @@ def analysis_band(laminate: Laminate, fs_hz: float, settings: WaveSettings = Wav
     if not 0 < fmin < fmax < fs / 2:
         raise waves.WaveError(f"wave band {fmin:g}..{fmax:g} Hz: expected 0 < fmin < fmax < rate/2 = {fs / 2:g} Hz")
     narrow = source.kind in ("tone_burst", "pzt")
-    noisy = noise is not None and np.size(noise) >= 16 and float(np.std(noise)) > 0
+    noisy = _std(noise) > 0
     if record is not None and (narrow or noisy):
         floor = min(fmin, 0.1 * fmax) / 2
         energy = signal_band(record, fs, settings.band_db, fmin_hz=floor)

@@ -36,10 +36,11 @@ from .picks import Direction, Sensor, nominal_cg
 __all__ = ["coupling_bound", "noise_std", "bound_in"]
 
 
-def noise_std(x: np.ndarray, pre: int) -> tuple[float, float] | None:
+def noise_std(x: np.ndarray, pre: int, fs: float | None = None) -> tuple[float, float] | None:
     """(std, baseline) of a record: the std is ``noise.noise_level``'s, the one the picks' SNR
     test uses (``picks.noise_rms``: the quieter of the pre-trigger samples and the last quarter,
-    by the median std of their 64-sample blocks; the smallest block's std, used here before
+    by the median std of their 64-sample blocks, or, with the rate ``fs`` (Hz), the white level
+    above the packets when those parts hold signal; the smallest block's std, used here before
     session 29, reads 17-22 % under white noise). The baseline is the pre-trigger blocks' median
     mean when that part is the quieter (wave-free), else the whole record's mean: a tail holds
     the coda, a slow swing off the baseline (issue 24, session 28: on the eriknbd 250 kHz
@@ -47,7 +48,7 @@ def noise_std(x: np.ndarray, pre: int) -> tuple[float, float] | None:
     0.0002 V, 14 x the noise, and the offset, read as crosstalk over the drive's window, bounded
     the coupling at 0.0056 instead of ~5e-4); a sensor's record of waves is AC, so its mean over
     the record is the baseline. None when too short."""
-    est = noise_level(x, pre)
+    est = noise_level(x, pre, fs)
     if est is None:
         return None
     std, base = est
@@ -135,7 +136,7 @@ def _bound(d: Direction, x: np.ndarray, s: Sensor, drive: np.ndarray, W_drive: n
         # the drive lies wholly outside the record (an onset measured before its start): no
         # crosstalk inside it (was: the record's peak over 1e-300, an overflow)
         return np.zeros(np.shape(W_drive)), 0.0
-    noise = noise_std(x, pre)
+    noise = noise_std(x, pre, fs)
     c = coupling_bound(x, drive, k_on, k_first, noise)
     if not math.isfinite(c):
         c = float(np.max(np.abs(x - (noise[1] if noise else 0.0))) / max(float(np.max(np.abs(drive))), 1e-300))

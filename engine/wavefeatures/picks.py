@@ -118,9 +118,10 @@ def noise_rms(x: np.ndarray, pre: int, fs: float, freqs: np.ndarray, wl: waves.W
     sensor holds a packet, or the source, before its trigger; one whose source is recorded
     ends quiet); the median ignores a packet in fewer than half a segment's blocks. (The
     smallest block's std, used before, was 17-22 % under the noise's std for 38-150 blocks
-    of white noise, so every pick's sigma was as much too small: issue 24, session 27.)
+    of white noise, so every pick's sigma was as much too small: issue 24, session 27.) When
+    both hold signal, the white level above the packets (``noise.noise_level``, session 30).
     """
-    level = noise_level(x, pre)     # the estimate crosstalk.noise_std shares (engine.wavefeatures.noise)
+    level = noise_level(x, pre, fs)     # the estimate crosstalk.noise_std shares (engine.wavefeatures.noise)
     if int(0.8 * pre) < 64 or level is None:
         return None
     std = level[0]

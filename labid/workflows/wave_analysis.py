@@ -22,6 +22,8 @@ from engine.wavefeatures import merge as waves_merge, sweep as waves_sweep
 from engine.wavefeatures import pipeline as waves_pipeline
 from engine.safe import ply_stiffness
 from engine.wavefeatures.pipeline import WaveSettings
+from engine.wavefeatures.band import source_band
+from engine.wavefeatures.noise import noise_level
 from engine.wavefeatures.shots import more_shots_note, stack_shots
 from engine.wavefeatures.predict import SourceModel
 
@@ -207,13 +209,17 @@ def _wave_features_one(records: Sequence[Record], rig: Rig, specimen: Specimen,
     rec_far = noise = None
     if far is not None:
         ok = usable_shots(records, names, [], "wave") or list(records)
-        x_far = stack_shots([{far.name: r.scaled(far.name)} for r in ok])[0][0][far.name]
+        # aligned as measure_waves aligns them (not with a recorded source), in the source's band
+        lo, hi = ws_settings.band_hz or source_band(specimen.laminate, fs, source, ws_settings.band_db, None, pre)[:2]
+        x_far = stack_shots([{far.name: r.scaled(far.name)} for r in ok], ref=None if force else far.name,
+                            band=(lo / fs, min(hi, 0.4 * fs) / fs))[0][0][far.name]
         c_max = _fastest_bulk(specimen)
         r_trig = rig.wave_sensor(r0.trigger.channel) if r0.trigger is not None else None
         r_trig = r_trig.distance_m if r_trig is not None else 0.0
         k0 = pre + int(max(rig.wave_sensor(far.name).distance_m - r_trig, 0.0) / c_max * fs)
         rec_far = x_far[min(k0, r0.timing.samples - 16):]
-        noise = x_far[:int(0.8 * pre)] if pre >= 80 else None
+        level = noise_level(x_far, pre, fs) if pre >= 80 else None    # the picks' estimate
+        noise = level[0] if level is not None else None
     try:
         band = waves_pipeline.analysis_band(
             specimen.laminate, fs, ws_settings,

@@ -113,3 +113,34 @@ def test_no_pretrigger_the_coda_is_no_baseline(seed):
     assert c <= b <= 4 * c
     assert noise_std(rest, 0)[1] == pytest.approx(1e-3, rel=0.1)
     assert coupling_bound(rest, drive, 0, k_first, noise_std(rest, 0)) <= 4 * c
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_no_pretrigger_with_the_rate_the_noise_is_not_the_coda(seed):
+    """The case above with the sample rate (issue 24, session 30): the tail's median block reads
+    the coda, 23 x the 5 uV noise; the white level of 1-2.25 MHz reads the noise (0.98-1.04 x over 5
+    seeds). The bound of the planted -40 dB coupling tightens from 3.6 x to 2.8 x it (what is left:
+    the record's mean as baseline, ~0.1 mV off the 1 mV offset under the coda); with a coupling
+    10 x stronger the coda's "noise" took so much of the window's energy away that the bound fell
+    UNDER the coupling (0.96 x): now 1.04 x."""
+    from tests.wave_signals import hann_burst
+
+    n, fs = 4000, 5.0e6
+    t = np.arange(n) / fs
+    drive = 10.0 * hann_burst(n, fs, F0, CYCLES, 0)
+    u = t - 110e-6
+    coda = np.where(u > 0, 2e-3 * np.sin(2 * np.pi * 6e3 * u) * np.exp(-u / 1e-3), 0.0)
+    rng = np.random.default_rng(seed)
+    rest = 5e-3 * hann_burst(n, fs, F0, CYCLES, 0, 60e-6) + coda + 5e-6 * rng.standard_normal(n) + 1e-3
+    k_first = int(50e-6 * fs)
+    for c, tighter in ((5e-6, 0.85), (5e-5, None)):
+        x = c * drive + rest
+        old, new = noise_std(x, 0), noise_std(x, 0, fs)
+        assert old[0] > 15 * 5e-6
+        assert new[0] == pytest.approx(5e-6, rel=0.1)
+        b_old, b_new = (coupling_bound(x, drive, 0, k_first, nz) for nz in (old, new))
+        assert c <= b_new < 3 * c
+        if tighter:
+            assert b_new < tighter * b_old
+        else:
+            assert b_old < c          # the bound that did not hold
