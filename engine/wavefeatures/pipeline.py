@@ -468,9 +468,12 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             if spread:
                 notes.append(f"{mode} along {direction:g} deg: {spread}; not reported")
                 continue
-            k, line = merge.misfit_scale(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
-                                         f"{mode} along {direction:g} deg")    # sigmas honest about a bias
-            notes += [line] if line else []
+            g, line = merge.gross_points(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
+                                         f"{mode} along {direction:g} deg", dropped_out=counts[mode])
+            ok[np.flatnonzero(ok)[g]] = False           # a gross point goes alone, before the sigmas are judged
+            k, line2 = merge.misfit_scale(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
+                                          f"{mode} along {direction:g} deg")    # sigmas honest about a bias
+            notes += [x for x in (line, line2) if x]
             out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], k * gv.sigma_m_s[ok],
                                  dict(counts[mode])))
             how = ("two sensors" if near is not None else
