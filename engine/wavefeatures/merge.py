@@ -254,7 +254,7 @@ def leave_one_out(f_hz, v, sigma, octaves: float | None = None) -> tuple[np.ndar
     (bench/RESULTS.md, issue 24, session 30, branch h66). At least 4 points."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     x = np.log(f / f.max())
-    w = 1.0 / np.maximum(s, 1e-3 * np.abs(v))
+    w2 = 1.0 / np.maximum(s, 1e-3 * np.abs(v)) ** 2
     r, u = np.zeros(f.size), np.zeros(f.size)
     for j in range(f.size):
         o = np.arange(f.size) != j
@@ -263,12 +263,13 @@ def leave_one_out(f_hz, v, sigma, octaves: float | None = None) -> tuple[np.ndar
             o = d <= max(octaves * np.log(2.0), float(np.sort(d)[3]))
         deg = min(2, int(o.sum()) - 2)
         A = np.vander(x[o] - x[j], deg + 1, increasing=True)   # about the point: its value is the 0th coefficient
-        P = np.linalg.pinv(A * w[o][:, None])
-        c = P[0] * w[o]                                        # the prediction's weights on the others
-        res = v[o] - A @ (P @ (w[o] * v[o]))
+        H = np.linalg.solve(A.T @ (A * w2[o][:, None]), A.T * w2[o])   # weighted least squares, coefficients
+        c = H[0]                                               # the prediction's weights on the others
+        res = v[o] - A @ (H @ v[o])
         r[j] = v[j] - float(c @ v[o])
         rms2 = float(np.sum(res ** 2)) / max(int(o.sum()) - deg - 1, 1)
-        trunc = float((c - np.linalg.pinv(A[:, :deg] * w[o][:, None])[0] * w[o]) @ v[o]) if deg else 0.0
+        B = A[:, :deg]
+        trunc = float((c - np.linalg.solve(B.T @ (B * w2[o][:, None]), B.T * w2[o])[0]) @ v[o]) if deg else 0.0
         u[j] = np.sqrt(s[j] ** 2 + float(np.sum((c * s[o]) ** 2)) + rms2 + trunc ** 2)
     return r, u
 
@@ -280,7 +281,7 @@ def gross_points(f_hz, v, sigma, label: str = "the curve", alpha: float = GROSS_
     curve of n >= ``min_points`` points: a point whose residual from the smooth curve through the
     others within ``octaves`` of it exceeds k x its combined uncertainty (``leave_one_out``), k the
     two-sided normal quantile of ``alpha`` / n (Bonferroni: a clean curve whose sigmas are right
-    loses a point in < ``alpha`` of draws; 3.3 for 5 points, 3.7 for 25). The worst goes, then the
+    loses a point in < ``alpha`` of draws; 3.1 for 5 points, 3.5 for 25). The worst goes, then the
     rest is judged again with the same k. When more points than the limit are off, the curve is
     biased rather than one point wrong: nothing is dropped (``misfit_scale`` scales its sigmas).
     ``most`` = 1/4: two of a burst's 8 A0 90 deg points were gross in the preamp sweep (+0.79 % and
