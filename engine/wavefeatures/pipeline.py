@@ -47,7 +47,9 @@ For each propagation direction of the wave sensors (``measure_waves``):
    centre-frequency sweep (docs/wavelet-bias.md; the swept wavelet measured once, on the
    shots' mean record) in quadrature;
 8. the features keep only points a wavelet resolution apart (each point's own wavelet,
-   ``merge.independent_mask``), less those off the smooth curve (``merge.off_curve``, ``odd_one``).
+   ``merge.independent_mask``), less those off the smooth curve (``merge.off_curve``, ``odd_one``)
+   and a gross point off the curve through the others (``merge.gross_points``); then the sigmas
+   are scaled by the rest's misfit (``merge.misfit_scale``).
 
 Pure: arrays and small frozen dataclasses in, a ``WaveResult`` out (its notes and the
 per-curve ``dropped`` counts included); no files, no run store. Units: s, Hz, m, m/s.
