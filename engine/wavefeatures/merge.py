@@ -250,8 +250,9 @@ def leave_one_out(f_hz, v, sigma, octaves: float | None = None) -> tuple[np.ndar
     prediction's change from one degree lower (the last term's size at the point), covers the
     polynomial not being the curve where it extrapolates (an end point): without it the TRUE
     plate's curve, at the preamp sweep's frequencies and 0.002-0.02 % sigmas, lay up to 4.0 x
-    this uncertainty off at a burst's top end (A0 90 deg 294 kHz, +0.03 %); with it < 3.3
-    (bench/RESULTS.md, issue 24, session 30, branch h66). At least 4 points."""
+    this uncertainty off at a burst's top end (A0 90 deg 294 kHz, +0.03 %); with it at most 1.1
+    over 187 burst and merged curves (bench/RESULTS.md, issue 24, session 30, branch h66). At
+    least 4 points."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     x = np.log(f / f.max())
     w2 = 1.0 / np.maximum(s, 1e-3 * np.abs(v)) ** 2
