@@ -21,10 +21,13 @@ from scipy import stats
 from .. import waves
 
 __all__ = ["by_length", "plan", "merge", "independent_mask", "merge_runs", "run_resolution", "off_curve", "left_out",
-           "scattered", "odd_one", "names", "misfit_scale", "birge_chi2"]
+           "scattered", "odd_one", "names", "misfit_scale", "birge_chi2",
+           "leave_one_out", "gross_points", "GROSS"]
 
 SPACING = 2.0 * np.sqrt(2.0)      # independent points: this many frequency-stds apart (waves.independent_points)
 LOO_SIGMAS, LOO_REL = 6.0, 0.20   # left_out: a point this many sigmas AND this far (relative) off the others' curve
+GROSS_ALPHA = 0.01               # gross_points: a clean curve loses a point in < 1 % of draws
+GROSS = "off the curve through the others"   # gross_points' reason in a curve's dropped counts
 
 
 def by_length(cands: Sequence[waves.Wavelet]) -> list[waves.Wavelet]:
@@ -213,36 +216,106 @@ def off_curve(f_hz, v, sigma, degree: int = 3, k: float = 4.0, floor: float = 1e
 def left_out(f_hz, v, sigma, k: float = LOO_SIGMAS, rel: float = LOO_REL) -> np.ndarray:
     """Mask of points far off the smooth curve through all the others (a safety net for any
     curve of 4 points or more, its end points included, which ``off_curve``'s fit through them
-    cannot judge): each point in turn is left out, a polynomial in ln f of degree
-    min(2, others - 2) is fitted to the others (weights 1/sigma) and evaluated at it; the
-    point is off when its residual exceeds ``k`` x sqrt(its sigma^2 + the others' median
-    sigma^2 + the others' rms residual^2) AND ``rel`` x the velocity. The worst such point goes,
-    then the check is repeated on the rest while 4 remain. ``rel`` = 20 % (``LOO_REL``): A0's sqrt(f) rise
-    extrapolated one point beyond a quadratic in ln f, or S0's knee, miss by < 2 % on an
-    independent-point grid; the gross mislabels seen are 20-60 % (issue 24, session 28: a
-    far-edge echo taken for S0, 58 % slow with a 0.7 % sigma, at a merged sweep's low end)."""
+    cannot judge): each point in turn is left out and compared with the curve through the others
+    (``leave_one_out``); the point is off when its residual exceeds ``k`` x its combined
+    uncertainty AND ``rel`` x the velocity. The worst such point goes, then the check is repeated
+    on the rest while 4 remain. ``rel`` = 20 % (``LOO_REL``): A0's sqrt(f) rise extrapolated one
+    point beyond a quadratic in ln f, or S0's knee, miss by < 2 % on an independent-point grid;
+    the gross mislabels seen are 20-60 % (issue 24, session 28: a far-edge echo taken for S0, 58 %
+    slow with a 0.7 % sigma, at a merged sweep's low end). ``gross_points`` is the same test
+    without ``rel``, on its own sigmas, for one point (or a small fraction) of a curve."""
     f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
     bad = np.zeros(f.size, bool)
     while (~bad).sum() >= 4:
         idx = np.flatnonzero(~bad)
-        x = np.log(f[idx] / f[idx].max())
-        w = 1.0 / np.maximum(s[idx], 1e-3 * np.abs(v[idx]))
-        worst, score = None, 1.0
-        for j in range(idx.size):
-            o = np.arange(idx.size) != j
-            deg = min(2, int(o.sum()) - 2)
-            c = np.polynomial.polynomial.polyfit(x[o], v[idx][o], deg, w=w[o])
-            res_o = v[idx][o] - np.polynomial.polynomial.polyval(x[o], c)
-            rms = float(np.sqrt(np.sum(res_o ** 2) / max(int(o.sum()) - deg - 1, 1)))
-            r = abs(v[idx][j] - float(np.polynomial.polynomial.polyval(x[j], c)))
-            u = float(np.sqrt(s[idx][j] ** 2 + np.median(s[idx][o]) ** 2 + rms ** 2))
-            sc = min(r / (k * u), r / (rel * abs(v[idx][j])))
-            if sc > score:
-                worst, score = idx[j], sc
-        if worst is None:
+        r, u = leave_one_out(f[idx], v[idx], s[idx])
+        sc = np.minimum(np.abs(r) / (k * u), np.abs(r) / (rel * np.abs(v[idx])))
+        j = int(np.argmax(sc))
+        if sc[j] <= 1.0:
             break
-        bad[worst] = True
+        bad[idx[j]] = True
     return bad
+
+
+def leave_one_out(f_hz, v, sigma, octaves: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(residual, combined uncertainty) of each point against the smooth curve through the others
+    (m/s): a polynomial in ln f of degree min(2, others - 2), weights 1 / max(sigma, 0.1 % of v),
+    through the others (all of them, or with ``octaves`` those within that many octaves of the
+    point, at least its 4 nearest), evaluated at the point. The uncertainty is
+    sqrt(its sigma^2 + the prediction's variance from the others' sigmas + the others' rms
+    residual^2 + the truncation error^2): the first two make residual / uncertainty a standard
+    normal deviate when the sigmas are right and the polynomial holds; the third (the others'
+    actual scatter about their curve, dof-corrected) keeps a point whose own sigma understates the
+    curve's scatter (a 2-shot sigma, a bias along the curve) from looking gross; the fourth, the
+    prediction's change from one degree lower (the last term's size at the point), covers the
+    polynomial not being the curve where it extrapolates (an end point): without it the TRUE
+    plate's curve, at the preamp sweep's frequencies and 0.002-0.02 % sigmas, lay up to 4.0 x
+    this uncertainty off at a burst's top end (A0 90 deg 294 kHz, +0.03 %); with it at most 1.1
+    over 187 burst and merged curves (bench/RESULTS.md, issue 24, session 30, branch h66). At
+    least 4 points."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    x = np.log(f / f.max())
+    w2 = 1.0 / np.maximum(s, 1e-3 * np.abs(v)) ** 2
+    r, u = np.zeros(f.size), np.zeros(f.size)
+    for j in range(f.size):
+        o = np.arange(f.size) != j
+        if octaves is not None:
+            d = np.where(o, np.abs(x - x[j]), np.inf)
+            o = d <= max(octaves * np.log(2.0), float(np.sort(d)[min(3, d.size - 2)]))
+        deg = min(2, int(o.sum()) - 2)
+        A = np.vander(x[o] - x[j], deg + 1, increasing=True)   # about the point: its value is the 0th coefficient
+        H = np.linalg.solve(A.T @ (A * w2[o][:, None]), A.T * w2[o])   # weighted least squares, coefficients
+        c = H[0]                                               # the prediction's weights on the others
+        res = v[o] - A @ (H @ v[o])
+        r[j] = v[j] - float(c @ v[o])
+        rms2 = float(np.sum(res ** 2)) / max(int(o.sum()) - deg - 1, 1)
+        B = A[:, :deg]
+        trunc = float((c - np.linalg.solve(B.T @ (B * w2[o][:, None]), B.T * w2[o])[0]) @ v[o]) if deg else 0.0
+        u[j] = np.sqrt(s[j] ** 2 + float(np.sum((c * s[o]) ** 2)) + rms2 + trunc ** 2)
+    return r, u
+
+
+def gross_points(f_hz, v, sigma, label: str = "the curve", alpha: float = GROSS_ALPHA, octaves: float = 0.5,
+                 most: float = 0.25, min_points: int = 5, dropped_out: dict | None = None
+                 ) -> tuple[np.ndarray, str]:
+    """(mask, console note) of the one gross point (or the few: at most max(1, int(``most`` x n))) of a
+    curve of n >= ``min_points`` points: a point whose residual from the smooth curve through the
+    others within ``octaves`` of it exceeds k x its combined uncertainty (``leave_one_out``), k the
+    two-sided normal quantile of ``alpha`` / n (Bonferroni: a clean curve whose sigmas are right
+    loses a point in < ``alpha`` of draws; 3.1 for 5 points, 3.5 for 25). The worst goes, then the
+    rest is judged again with the same k. When more points than the limit are off, the curve is
+    biased rather than one point wrong: nothing is dropped (``misfit_scale`` scales its sigmas).
+    ``most`` = 1/4: two of a burst's 8 A0 90 deg points were gross in the preamp sweep (+0.79 % and
+    -2.16 % at 0.014 % and 0.002 % sigmas, file +40 %, seeds 1 and 2). ``octaves`` = 1/2 (each
+    side): the truncation term grows with the window, so over a merged A0 curve (47-306 kHz) an
+    octave each side left 0.9-1.1 % (median) of uncertainty, half an octave 0.34 %; the same
+    gross points went and no fine one (bench/RESULTS.md, issue 24, session 30, branch h66).
+    Why: one gross point (a burst's A0 90 deg point at -2.2 % with a 0.02 % sigma, issue 24,
+    session 29) made the whole curve's Birge ratio 26, so every good point lost its weight in the
+    sweep's merge while the bad one stayed. Tighter than ``left_out`` (no 20 % floor) for one
+    point; ``left_out`` still takes any number of gross mislabels. ``dropped_out``, when given,
+    counts the points dropped under ``GROSS``. Units: any, consistent."""
+    f, v, s = (np.asarray(a, float) for a in (f_hz, v, sigma))
+    bad = np.zeros(f.size, bool)
+    if f.size < min_points:
+        return bad, ""
+    k = float(stats.norm.isf(alpha / (2 * f.size)))
+    cap = max(1, int(most * f.size))
+    while True:
+        idx = np.flatnonzero(~bad)
+        r, u = leave_one_out(f[idx], v[idx], s[idx], octaves)
+        j = int(np.argmax(np.abs(r) / u))
+        if abs(r[j]) <= k * u[j]:
+            break
+        if bad.sum() >= cap:                  # more off than one point's worth: a biased curve
+            return np.zeros(f.size, bool), ""
+        bad[idx[j]] = True
+    if not bad.any():
+        return bad, ""
+    if dropped_out is not None:
+        dropped_out[GROSS] = dropped_out.get(GROSS, 0) + int(bad.sum())
+    return bad, (f"{label}: " + ", ".join(f"{fi / 1e3:.4g} kHz" for fi in f[bad]) + f" dropped, {GROSS} "
+                 f"(more than {k:.2g} x its uncertainty: its sigma, the others' curve and scatter)")
 
 
 def scattered(f_hz, v, sigma, limit: float = 0.01) -> str:

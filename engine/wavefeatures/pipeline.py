@@ -47,7 +47,9 @@ For each propagation direction of the wave sensors (``measure_waves``):
    centre-frequency sweep (docs/wavelet-bias.md; the swept wavelet measured once, on the
    shots' mean record) in quadrature;
 8. the features keep only points a wavelet resolution apart (each point's own wavelet,
-   ``merge.independent_mask``), less those off the smooth curve (``merge.off_curve``, ``odd_one``).
+   ``merge.independent_mask``), less those off the smooth curve (``merge.off_curve``, ``odd_one``)
+   and a gross point off the curve through the others (``merge.gross_points``); then the sigmas
+   are scaled by the rest's misfit (``merge.misfit_scale``).
 
 Pure: arrays and small frozen dataclasses in, a ``WaveResult`` out (its notes and the
 per-curve ``dropped`` counts included); no files, no run store. Units: s, Hz, m, m/s.
@@ -468,9 +470,12 @@ def measure_waves(setup: WaveSetup, shots: Sequence[Mapping[str, np.ndarray]], f
             if spread:
                 notes.append(f"{mode} along {direction:g} deg: {spread}; not reported")
                 continue
-            k, line = merge.misfit_scale(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
-                                         f"{mode} along {direction:g} deg")    # sigmas honest about a bias
-            notes += [line] if line else []
+            g, line = merge.gross_points(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
+                                         f"{mode} along {direction:g} deg", dropped_out=counts[mode])
+            ok[np.flatnonzero(ok)[g]] = False           # a gross point goes alone, before the sigmas are judged
+            k, line2 = merge.misfit_scale(freqs[ok], gv.velocity_m_s[ok], gv.sigma_m_s[ok],
+                                          f"{mode} along {direction:g} deg")    # sigmas honest about a bias
+            notes += [x for x in (line, line2) if x]
             out.append(WaveCurve(mode, float(direction), freqs[ok], gv.velocity_m_s[ok], k * gv.sigma_m_s[ok],
                                  dict(counts[mode])))
             how = ("two sensors" if near is not None else

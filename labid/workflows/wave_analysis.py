@@ -157,9 +157,11 @@ def _merge_sweep(parts, notes: list[str], shots: dict | None = None):
                 drop[r] = drop.get(r, 0) + n
         F, V, S, N = waves_merge.merge_runs([(np.array(w["frequency_hz"]), np.array(w["group_velocity_m_s"]),
                                               np.array(w["sigma_m_s"])) for w in ws], runs_out=runs, dropped_out=drop)
-        k, line = waves_merge.misfit_scale(F, V, S, f"{mode} along {direction:g} deg (merged)")
+        g, line = waves_merge.gross_points(F, V, S, f"{mode} along {direction:g} deg (merged)", dropped_out=drop)
+        F, V, S, N, runs = F[~g], V[~g], S[~g], N[~g], [r for r, b in zip(runs, g) if not b]
+        k, line2 = waves_merge.misfit_scale(F, V, S, f"{mode} along {direction:g} deg (merged)")
         S = k * S                           # the merged curve judged too (bursts' biases may disagree)
-        notes += [line] if line else []
+        notes += [x for x in (line, line2) if x]
         out.append({"mode": mode, "direction_deg": float(direction), "frequency_hz": [float(x) for x in F],
                     "group_velocity_m_s": [float(x) for x in V], "sigma_m_s": [float(x) for x in S],
                     "dropped": drop})
