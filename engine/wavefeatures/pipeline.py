@@ -67,7 +67,7 @@ from .band import Band, analysis_band, default_wavelet, signal_band, snr_band, w
 from .picks import (MODES, Direction, Sensor, WaveSettings, WaveSetup, arrivals_of, direction_of, locate_onset,
                     noise_rms, nominal_cg, sensor_delay)
 from . import crosstalk, memo, merge
-from .shots import MAX_CURVES, align_channel, align_shots, combine_shots, stack_shots
+from .shots import MAX_CURVES, align_channel, align_shots, bias_term, combine_shots, stack_shots
 from .survey import survey_direction, survey_onsets
 
 __all__ = ["WaveSettings", "Sensor", "WaveSetup", "WaveCurve", "WaveResult", "Band", "default_wavelet", "stack_shots",
@@ -346,12 +346,7 @@ def _sweep_term(d: Direction, wl: waves.Wavelet, shots, combined: dict) -> dict:
             d.memo = kept
     else:
         per_shot, _, _ = _measure(d, alt_wl, shots)
-    out = {}
-    for m, g in combined.items():
-        alt = combine_shots([s[m] for s in per_shot if m in s])
-        both = g.valid & alt.valid
-        out[m] = np.where(both, 0.5 * np.abs(g.velocity_m_s - alt.velocity_m_s), 0.0)
-    return out
+    return {m: bias_term(g, combine_shots([s[m] for s in per_shot if m in s])) for m, g in combined.items()}
 
 
 def _pairs(sensors: Sequence[Sensor], shots) -> tuple[list[Sensor], list[dict], list[str]]:

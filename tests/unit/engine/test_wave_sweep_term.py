@@ -11,6 +11,7 @@ session 29), instead of on every group.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from engine import waves
 from engine.wavefeatures import pipeline
@@ -82,3 +83,26 @@ def test_the_sweep_term_of_the_mean_record_is_the_groups_term():
     assert np.median(noiseless[ok] / sigma) > 1.5
     assert np.all(np.abs(new - old) <= 0.1 * sigma)
     assert np.all(np.abs(new - noiseless[ok]) <= 2 * sigma)
+
+
+def test_bias_term_where_the_swept_wavelet_has_no_pick_takes_the_larger_neighbour():
+    """Where only the reported wavelet picked, the term is the larger relative term of the nearest
+    frequencies on each side where both picked (not 0: issue 24, session 30), at the end points
+    the one side's; a curve whose swept wavelet picked nowhere keeps 0; an invalid point none."""
+    from engine.wavefeatures.shots import bias_term
+    f = np.linspace(100e3, 190e3, 10)
+    v = np.linspace(1500.0, 1700.0, 10)
+    d = np.array([3.0, 0, 0, 10.0, 0, 4.0, 0, 0, 2.0, 0])       # |v - v_alt| where both picked
+    alt_ok = np.array([1, 0, 0, 1, 0, 1, 0, 0, 1, 0], bool)
+    g_ok = np.array([1, 1, 1, 1, 1, 1, 0, 1, 1, 1], bool)
+    g = waves.GroupVelocity(f, v, np.full(10, 1.0), g_ok)
+    alt = waves.GroupVelocity(f, np.where(alt_ok, v + d, np.nan), np.full(10, 1.0), alt_ok)
+    t = bias_term(g, alt)
+    half = 0.5 * d / v
+    assert t[[0, 3, 5, 8]] == pytest.approx(0.5 * d[[0, 3, 5, 8]], rel=1e-12)
+    for i, (lo, hi) in {1: (0, 3), 2: (0, 3), 4: (3, 5), 7: (5, 8)}.items():
+        assert t[i] == pytest.approx(max(half[lo], half[hi]) * v[i], rel=1e-12)
+    assert t[9] == pytest.approx(half[8] * v[9], rel=1e-12)     # past the last: that side only
+    assert t[6] == 0.0                                           # not a valid point of the curve
+    none = waves.GroupVelocity(f, np.full(10, np.nan), np.full(10, 1.0), np.zeros(10, bool))
+    assert np.all(bias_term(g, none) == 0.0)
