@@ -236,7 +236,8 @@ def correct_dispersion_bias(arr: Arrivals, degree: int = 3) -> Arrivals:
         # not determined (a long tone burst reassigns every analysis frequency into a few kHz:
         # the fit then moved a 250 kHz A0 pick by 13 us; bench/RESULTS.md, issue 24, session 27)
         return arr
-    ridge = ridge_points(arr.inst_freq_hz, arr.times_s, arr.sigma_s, wl.time_std_s(arr.frequencies_hz), ok, degree)
+    ridge = ridge_points(arr.inst_freq_hz, arr.times_s, arr.sigma_s, wl.time_std_s(arr.frequencies_hz), ok, degree,
+                         least=0.5)
     if ridge.sum() < max(degree + 2, 0.5 * ok.sum()) or np.ptp(w[ridge]) < np.median(s[ridge]):
         # most picks on no one smooth ridge (a short wavelet across a notch: two lobes): tau''
         # is not determined; the picks stay as they are
@@ -259,26 +260,35 @@ def correct_dispersion_bias(arr: Arrivals, degree: int = 3) -> Arrivals:
                    valid=arr.valid & ~off, reason=reason)
 
 
-def ridge_points(f_hz, t_s, sigma_s, tstd_s, valid, degree: int = 3, frac: float = 0.1, k: float = 3.0
-                 ) -> np.ndarray:
+def ridge_points(f_hz, t_s, sigma_s, tstd_s, valid, degree: int = 3, frac: float = 0.1, k: float = 3.0,
+                 least: float = 0.0) -> np.ndarray:
     """The ``valid`` arrivals on one smooth ridge: the others, picks of another packet, left out.
 
     A polynomial of ``degree`` in ln f (weights 1 / sigma) is fitted to the times; the point
     farthest from it (relative to its limit) goes when it is off by more than ``frac`` of the
     wavelet's time std at its frequency (``tstd_s``) and more than ``k`` of its own sigma, and
-    the fit is redone, until none is. One packet's ridge is smooth on that scale (its group delay bends over many
-    frequency stds); the lobes either side of a spectral notch, or a neighbouring packet, lie a
+    the fit is redone, until none is. One packet's ridge is smooth on that scale (its group
+    delay bends over many frequency stds); the lobes either side of a spectral notch, or a neighbouring packet, lie a
     good part of a time std off it (A0 along 90 deg, 100 kHz burst: picks 40-50 us off a ridge
     whose other points lie within 0.2 us; the time std of cmor2-5 is 35 us there: issue 24,
-    session 30). Returns the mask (at least degree + 2 points, or ``valid`` when it has fewer)."""
+    session 30). Returns the mask (at least degree + 2 points, or ``valid`` when it has fewer);
+    ``least``: stop once fewer than this fraction of ``valid`` remain (the caller then takes no
+    ridge: a sweep's short wavelets split by a notch went on for ~25 fits)."""
     keep = np.asarray(valid, bool).copy()
     f, t, sig, lim = (np.asarray(a, float) for a in (f_hz, t_s, sigma_s, tstd_s))
     x = np.log(np.where(keep, f, 1.0))
-    while keep.sum() > degree + 2:
-        xm = x[keep].mean()
-        c = np.polynomial.polynomial.polyfit(x[keep] - xm, t[keep], degree, w=1.0 / sig[keep])
-        r = np.where(keep, np.abs(t - np.polynomial.polynomial.polyval(x - xm, c)), 0.0)
-        score = np.where(keep, r / np.maximum(frac * lim, k * np.where(keep, sig, 1.0)), 0.0)
+    floor = max(degree + 2, least * keep.sum())
+    if keep.sum() <= degree + 2:
+        return keep
+    # the weighted least squares of np.polynomial's polyfit, on one Vandermonde matrix (a third
+    # of the CPU of polyfit's per-call set-up over a sweep's ~200 calls of up to ~25 fits)
+    V = np.vander(x - x[keep].mean(), degree + 1, increasing=True)
+    wt = np.where(keep, 1.0 / np.where(keep, sig, 1.0), 0.0)
+    tt = np.where(keep, t, 0.0)
+    lim = np.maximum(frac * lim, k * np.where(keep, sig, 1.0))
+    while keep.sum() > degree + 2 and keep.sum() >= floor:
+        c = np.linalg.lstsq(V[keep] * wt[keep, None], tt[keep] * wt[keep], rcond=None)[0]
+        score = np.where(keep, np.abs(tt - V @ c) / lim, 0.0)
         j = int(np.argmax(score))
         if score[j] <= 1.0:
             break
