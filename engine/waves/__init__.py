@@ -23,8 +23,9 @@ shots, independent points) is :mod:`engine.wavefeatures.pipeline`.
 
 Public API (re-exported here): ``WaveError``, ``Wavelet``, ``PAPER_ALUMINIUM``,
 ``PAPER_CFRP``, ``cwt``, ``cwt_decimated``, ``white_noise_level``, ``Arrivals``,
-``arrival_times``, ``correct_dispersion_bias``, ``ridge_points``, ``velocity_gate``, ``expected_gate``,
-``GroupVelocity``, ``group_velocity``, ``independent_points``, ``RayPath``, ``ray_paths``.
+``arrival_times``, ``correct_dispersion_bias``, ``ridge_points``, ``velocity_gate``,
+``expected_gate``, ``GroupVelocity``, ``group_velocity``, ``independent_points``, ``RayPath``,
+``ray_paths``.
 """
 from .arrivals import Arrivals, arrival_times, correct_dispersion_bias, expected_gate, ridge_points, velocity_gate
 from .bank import cwt, cwt_decimated, white_noise_level
