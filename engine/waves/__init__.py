@@ -23,10 +23,11 @@ shots, independent points) is :mod:`engine.wavefeatures.pipeline`.
 
 Public API (re-exported here): ``WaveError``, ``Wavelet``, ``PAPER_ALUMINIUM``,
 ``PAPER_CFRP``, ``cwt``, ``cwt_decimated``, ``white_noise_level``, ``Arrivals``,
-``arrival_times``, ``correct_dispersion_bias``, ``velocity_gate``, ``expected_gate``,
-``GroupVelocity``, ``group_velocity``, ``independent_points``, ``RayPath``, ``ray_paths``.
+``arrival_times``, ``correct_dispersion_bias``, ``ridge_points``, ``velocity_gate``,
+``expected_gate``, ``GroupVelocity``, ``group_velocity``, ``independent_points``, ``RayPath``,
+``ray_paths``.
 """
-from .arrivals import Arrivals, arrival_times, correct_dispersion_bias, expected_gate, velocity_gate
+from .arrivals import Arrivals, arrival_times, correct_dispersion_bias, expected_gate, ridge_points, velocity_gate
 from .bank import cwt, cwt_decimated, white_noise_level
 from .paths import RayPath, ray_paths
 from .velocity import GroupVelocity, group_velocity, independent_points
@@ -35,5 +36,5 @@ from .wavelet import PAPER_ALUMINIUM, PAPER_CFRP, Wavelet, WaveError
 __all__ = [
     "WaveError", "Wavelet", "PAPER_ALUMINIUM", "PAPER_CFRP", "cwt", "cwt_decimated", "white_noise_level",
     "Arrivals", "arrival_times", "velocity_gate", "expected_gate", "GroupVelocity",
-    "group_velocity", "correct_dispersion_bias", "independent_points", "RayPath", "ray_paths",
+    "group_velocity", "correct_dispersion_bias", "ridge_points", "independent_points", "RayPath", "ray_paths",
 ]
