@@ -90,14 +90,10 @@ def test_a_drive_wholly_before_the_record_bounds_no_crosstalk():
     assert bound.shape == W.shape and not np.any(bound)
 
 
-@pytest.mark.parametrize("seed", range(5))
-def test_no_pretrigger_the_coda_is_no_baseline(seed):
-    """No pre-trigger (the record starts with the drive, as on the eriknbd line scans): the
-    noise blocks come from the tail, which holds a slow coda. A 5-cycle burst copy at t = 0 at
-    -40 dB of the packet that leaves 60 us later, a 6 kHz decaying coda from 110 us, a 1 mV
-    offset, white noise (numpy only). The bound must hold the planted coupling and stay near
-    it; with no crosstalk it stays at that level. Before the fix the coda's quietest block
-    gave the baseline (2.14 mV) and the bound was 3.2e-4, 65 x the coupling."""
+
+def _no_pretrigger_record(seed: int):
+    """(fs, drive, rest) of a record without a pre-trigger: a 5-cycle drive, the packet 60 us
+    later (5 mV), a 6 kHz decaying coda from 110 us, a 1 mV offset, 5 uV white noise (numpy only)."""
     from tests.wave_signals import hann_burst
 
     n, fs = 4000, 5.0e6
@@ -107,6 +103,17 @@ def test_no_pretrigger_the_coda_is_no_baseline(seed):
     coda = np.where(u > 0, 2e-3 * np.sin(2 * np.pi * 6e3 * u) * np.exp(-u / 1e-3), 0.0)
     rng = np.random.default_rng(seed)
     rest = 5e-3 * hann_burst(n, fs, F0, CYCLES, 0, 60e-6) + coda + 5e-6 * rng.standard_normal(n) + 1e-3
+    return fs, drive, rest
+
+@pytest.mark.parametrize("seed", range(5))
+def test_no_pretrigger_the_coda_is_no_baseline(seed):
+    """No pre-trigger (the record starts with the drive, as on the eriknbd line scans): the
+    noise blocks come from the tail, which holds a slow coda. A 5-cycle burst copy at t = 0 at
+    -40 dB of the packet that leaves 60 us later, a 6 kHz decaying coda from 110 us, a 1 mV
+    offset, white noise (numpy only). The bound must hold the planted coupling and stay near
+    it; with no crosstalk it stays at that level. Before the fix the coda's quietest block
+    gave the baseline (2.14 mV) and the bound was 3.2e-4, 65 x the coupling."""
+    fs, drive, rest = _no_pretrigger_record(seed)
     c = 0.01 * 5e-3 / 10.0                 # -40 dB of the packet, per volt of drive
     k_first = int(50e-6 * fs)              # the packet's front reaches the sensor after this
     b = coupling_bound(c * drive + rest, drive, 0, k_first, noise_std(c * drive + rest, 0))
@@ -123,15 +130,7 @@ def test_no_pretrigger_with_the_rate_the_noise_is_not_the_coda(seed):
     the record's mean as baseline, ~0.1 mV off the 1 mV offset under the coda); with a coupling
     10 x stronger the coda's "noise" took so much of the window's energy away that the bound fell
     UNDER the coupling (0.96 x): now 1.04 x."""
-    from tests.wave_signals import hann_burst
-
-    n, fs = 4000, 5.0e6
-    t = np.arange(n) / fs
-    drive = 10.0 * hann_burst(n, fs, F0, CYCLES, 0)
-    u = t - 110e-6
-    coda = np.where(u > 0, 2e-3 * np.sin(2 * np.pi * 6e3 * u) * np.exp(-u / 1e-3), 0.0)
-    rng = np.random.default_rng(seed)
-    rest = 5e-3 * hann_burst(n, fs, F0, CYCLES, 0, 60e-6) + coda + 5e-6 * rng.standard_normal(n) + 1e-3
+    fs, drive, rest = _no_pretrigger_record(seed)
     k_first = int(50e-6 * fs)
     for c, tighter in ((5e-6, 0.85), (5e-5, None)):
         x = c * drive + rest
