@@ -121,8 +121,10 @@ def noise_rms(x: np.ndarray, pre: int, fs: float, freqs: np.ndarray, wl: waves.W
     of white noise, so every pick's sigma was as much too small: issue 24, session 27.) When
     both hold signal, the white level above the packets (``noise.noise_level``, session 30).
     """
+    if int(0.8 * pre) < 64:      # (before the estimate: its white level is a scalogram of the record)
+        return None
     level = noise_level(x, pre, fs)     # the estimate crosstalk.noise_std shares (engine.wavefeatures.noise)
-    if int(0.8 * pre) < 64 or level is None:
+    if level is None:
         return None
     std = level[0]
     if not std > 0:  # a noiseless (simulated) record: nothing to compare with
